@@ -1,0 +1,10 @@
+# nimbus_warnings: an interface target every nimbus target links for the house flags.
+add_library(nimbus_warnings INTERFACE)
+target_compile_options(nimbus_warnings INTERFACE -Wall -Wextra -Wshadow=local -Wnon-virtual-dtor)
+if(NIMBUS_WERROR)
+  target_compile_options(nimbus_warnings INTERFACE -Werror)
+endif()
+if(NIMBUS_SANITIZE)
+  target_compile_options(nimbus_warnings INTERFACE -fsanitize=address,undefined -fno-omit-frame-pointer)
+  target_link_options(nimbus_warnings INTERFACE -fsanitize=address,undefined)
+endif()

@@ -1,0 +1,77 @@
+#include "src/core/decomposition.h"
+
+#include <fmt/format.h>
+
+#include "src/core/error.h"
+
+namespace nimbus {
+
+Decomposition::Decomposition(MPI_Comm comm, const Int3& n, Int3 proc_dims,
+                             std::array<bool, 3> periodic)
+    : global_{{0, 0, 0}, n}, periodic_(periodic) {
+    int nranks = 1;
+    MPI_Comm_size(comm, &nranks);
+    if (n[0] <= 0 || n[1] <= 0 || n[2] <= 0)
+        throw Error(fmt::format("grid has zero size ({} x {} x {} cells)", n[0], n[1], n[2]));
+    if (proc_dims == Int3{0, 0, 0}) proc_dims = {1, 1, 0};
+    int fixed = 1, free_axes = 0;
+    for (int d = 0; d < 3; ++d) {
+        if (proc_dims[d] < 0) throw Error("process grid entries must be >= 0");
+        if (proc_dims[d] > 0) fixed *= proc_dims[d]; else ++free_axes;
+    }
+    if (free_axes > 0) {
+        if (nranks % fixed != 0)
+            throw Error(fmt::format("process grid {}x{}x{} does not divide {} ranks",
+                                    proc_dims[0], proc_dims[1], proc_dims[2], nranks));
+        MPI_Dims_create(nranks, 3, proc_dims.data());
+    }
+    if (proc_dims[0] * proc_dims[1] * proc_dims[2] != nranks)
+        throw Error(fmt::format("process grid {}x{}x{} needs {} ranks, but {} were started",
+                                proc_dims[0], proc_dims[1], proc_dims[2],
+                                proc_dims[0] * proc_dims[1] * proc_dims[2], nranks));
+    for (int d = 0; d < 3; ++d)
+        if (proc_dims[d] > n[d])
+            throw Error(fmt::format(
+                "{} ranks along {} but the grid has only {} cells there: some ranks would own "
+                "no cells; run with at most {} ranks or change the process grid",
+                proc_dims[d], "xyz"[d], n[d], nranks / proc_dims[d] * n[d]));
+    dims_ = proc_dims;
+
+    int periods[3] = {periodic[0], periodic[1], periodic[2]};
+    MPI_Comm cart = MPI_COMM_NULL;
+    MPI_Cart_create(comm, 3, dims_.data(), periods, /*reorder=*/0, &cart);
+    comm_ = std::shared_ptr<MPI_Comm>(new MPI_Comm(cart), [](MPI_Comm* c) {
+        int finalized = 0;
+        MPI_Finalized(&finalized);
+        if (!finalized && *c != MPI_COMM_NULL) MPI_Comm_free(c);
+        delete c;
+    });
+    MPI_Comm_rank(cart, &rank_);
+    MPI_Comm_size(cart, &size_);
+    MPI_Cart_coords(cart, rank_, 3, coords_.data());
+    local_ = box_of(rank_);
+}
+
+Box Decomposition::box_of(int r) const {
+    Int3 c{};
+    MPI_Cart_coords(*comm_, r, 3, c.data());
+    Box b;
+    for (int d = 0; d < 3; ++d) {
+        b.lo[d] = split_lo(global_.hi[d], dims_[d], c[d]);
+        b.hi[d] = split_lo(global_.hi[d], dims_[d], c[d] + 1);
+    }
+    return b;
+}
+
+int Decomposition::neighbor(int axis, int dir) const {
+    int src = MPI_PROC_NULL, dst = MPI_PROC_NULL;
+    MPI_Cart_shift(*comm_, axis, dir, &src, &dst);
+    return dst;
+}
+
+std::string Decomposition::describe() const {
+    return fmt::format("{} rank{} as {}x{}x{}{}", size_, size_ == 1 ? "" : "s", dims_[0], dims_[1],
+                       dims_[2], is_slab_z() ? " (slabs along z)" : "");
+}
+
+}  // namespace nimbus

@@ -1,0 +1,54 @@
+// Decomposition: the global grid split over an MPI Cartesian process grid, one box per rank.
+// Default: slabs along z (process grid 1 x 1 x P), the layout the sweeps pipeline over.
+// Owns its Cartesian communicator. Knows nothing about any solver.
+#pragma once
+
+#include <mpi.h>
+
+#include <memory>
+#include <string>
+
+#include "src/core/box.h"
+
+namespace nimbus {
+
+class Decomposition {
+public:
+    // Collective over `comm`. proc_dims: ranks per axis; 0 entries are filled so that the
+    // product is the rank count (all zeros -> slabs along z). Throws Error on every rank when
+    // a rank would own no cells or the dims do not multiply to the rank count.
+    Decomposition(MPI_Comm comm, const Int3& global_cells, Int3 proc_dims = {0, 0, 0},
+                  std::array<bool, 3> periodic = {false, false, false});
+
+    MPI_Comm comm() const { return *comm_; }
+    int rank() const { return rank_; }
+    int size() const { return size_; }
+    const Box& global() const { return global_; }
+    const Box& local() const { return local_; }
+    const Int3& dims() const { return dims_; }
+    const Int3& coords() const { return coords_; }
+    bool periodic(int axis) const { return periodic_[axis]; }
+    bool is_slab_z() const { return dims_[0] == 1 && dims_[1] == 1; }
+
+    // Rank of the neighbour one step along `axis` in direction dir (+1/-1); MPI_PROC_NULL at a
+    // non-periodic domain boundary.
+    int neighbor(int axis, int dir) const;
+    // The box owned by any rank (computable locally, no communication).
+    Box box_of(int rank) const;
+    // Whether this rank's box touches the low/high domain face along axis.
+    bool at_low_boundary(int axis) const { return local_.lo[axis] == global_.lo[axis]; }
+    bool at_high_boundary(int axis) const { return local_.hi[axis] == global_.hi[axis]; }
+
+    std::string describe() const;  // e.g. "2 ranks as 1x1x2 (slabs along z)"
+
+private:
+    static int split_lo(int n, int parts, int p) { return static_cast<int>((long long)n * p / parts); }
+
+    std::shared_ptr<MPI_Comm> comm_;
+    int rank_ = 0, size_ = 1;
+    Box global_{}, local_{};
+    Int3 dims_{1, 1, 1}, coords_{0, 0, 0};
+    std::array<bool, 3> periodic_{false, false, false};
+};
+
+}  // namespace nimbus

@@ -1,0 +1,54 @@
+#include "src/core/halo.h"
+
+#include <vector>
+
+namespace nimbus {
+namespace {
+
+// Copies the slab of f between [a, b) along `axis` (other axes over the allocated box, so
+// edges and corners propagate) to or from a buffer.
+template <bool kPack>
+void copy_slab(Field<double>& f, int axis, int a, int b, std::vector<double>& buf) {
+    Box s = f.allocated();
+    s.lo[axis] = a;
+    s.hi[axis] = b;
+    const int nc = f.ncomp();
+    buf.resize(static_cast<size_t>(s.cells() * nc));
+    size_t n = 0;
+    for_each_cell(s, [&](int i, int j, int k) {
+        for (int c = 0; c < nc; ++c, ++n) {
+            if constexpr (kPack) buf[n] = f(i, j, k, c); else f(i, j, k, c) = buf[n];
+        }
+    });
+}
+
+}  // namespace
+
+void exchange_halo(Field<double>& f, const Decomposition& d) {
+    const int g = f.ghost();
+    if (g == 0) return;
+    const Box& own = f.owned();
+    std::vector<double> send, recv;
+    for (int axis = 0; axis < 3; ++axis) {
+        const int lo_nb = d.neighbor(axis, -1), hi_nb = d.neighbor(axis, +1);
+        const int depth = std::min(g, own.size(axis));
+        for (int dir : {+1, -1}) {
+            // dir = +1: send my high layers up, receive my low ghosts from below.
+            const int to = dir > 0 ? hi_nb : lo_nb, from = dir > 0 ? lo_nb : hi_nb;
+            const int s0 = dir > 0 ? own.hi[axis] - depth : own.lo[axis];
+            const int r0 = dir > 0 ? own.lo[axis] - depth : own.hi[axis];
+            if (to != MPI_PROC_NULL) copy_slab<true>(f, axis, s0, s0 + depth, send);
+            else send.clear();
+            Box rs = f.allocated();
+            rs.lo[axis] = r0;
+            rs.hi[axis] = r0 + depth;
+            recv.resize(from != MPI_PROC_NULL ? static_cast<size_t>(rs.cells() * f.ncomp()) : 0);
+            MPI_Sendrecv(send.data(), static_cast<int>(send.size()), MPI_DOUBLE, to, 700 + axis,
+                         recv.data(), static_cast<int>(recv.size()), MPI_DOUBLE, from, 700 + axis,
+                         d.comm(), MPI_STATUS_IGNORE);
+            if (from != MPI_PROC_NULL) copy_slab<false>(f, axis, r0, r0 + depth, recv);
+        }
+    }
+}
+
+}  // namespace nimbus

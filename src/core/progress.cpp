@@ -1,0 +1,27 @@
+#include "src/core/progress.h"
+
+#include "src/core/log.h"
+#include "src/core/report.h"
+
+namespace nimbus {
+
+Progress::Progress(std::string what, double total, bool speaker, double quiet, double interval)
+    : what_(std::move(what)), total_(total), start_(wall_time()), last_(start_),
+      speaker_(speaker), quiet_(quiet), interval_(interval) {}
+
+void Progress::update(double done) {
+    if (!speaker_) return;
+    const double now = wall_time();
+    if (now - start_ < quiet_ || now - last_ < interval_) return;
+    last_ = now;
+    spoke_ = true;
+    const double frac = total_ > 0 ? done / total_ : 0.0;
+    const double eta = frac > 0 ? (now - start_) * (1.0 - frac) / frac : 0.0;
+    log::info("{}: {:5.1f}% ({:.1f} s elapsed, ETA {:.1f} s)", what_, 100.0 * frac, now - start_, eta);
+}
+
+void Progress::finish() {
+    if (speaker_ && spoke_) log::info("{}: done in {:.1f} s", what_, wall_time() - start_);
+}
+
+}  // namespace nimbus

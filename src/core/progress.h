@@ -1,0 +1,23 @@
+// Progress with ETA for long phases. Rank 0 logs at most every `interval` seconds and only
+// once the phase has run longer than `quiet` seconds, so short phases stay silent.
+#pragma once
+
+#include <string>
+
+namespace nimbus {
+
+class Progress {
+public:
+    Progress(std::string what, double total, bool speaker, double quiet = 2.0, double interval = 2.0);
+    // Reports that `done` units of `total` are complete (not collective).
+    void update(double done);
+    void finish();
+
+private:
+    std::string what_;
+    double total_, start_, last_;
+    bool speaker_, spoke_ = false;
+    double quiet_, interval_;
+};
+
+}  // namespace nimbus

@@ -1,0 +1,72 @@
+// The one interface every multiple-scattering model implements (DESIGN §2). The pipeline
+// calls solve() without knowing which model runs; each model fills a DiffuseSolution whose
+// fluence has the same meaning everywhere:
+//   fluence_diffuse = ∫ I_d dw = 4π U   (W/m², per band, on the rank's owned box)
+// The renderer evaluates the in-scattered radiance toward w from it (DESIGN §1):
+//   J(x, w) = kappa a [ fluence/(4π) + (3 g / 4π) F·w + Σ_lights E0 T p(w·w_light) ]
+// where the flux F term is used only when the model provides flux.
+#pragma once
+
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "src/core/decomposition.h"
+#include "src/core/field.h"
+#include "src/core/report.h"
+#include "src/physics/lights.h"
+#include "src/scene/medium.h"
+#include "src/scene/scene.h"
+
+namespace nimbus {
+
+// What the light pass produced: per light term, the optical depth of the density along the
+// light's path, tau_rho(x) = ∫ rho ds from x back to the domain boundary against w (metres ×
+// density). Per band, T = exp(-sigma_t tau_rho). Owned box + 1 ghost layer (halo-exchanged).
+struct LightTransport {
+    std::vector<DirectionalLight> lights;
+    std::vector<Field<double>> tau_rho;  // one per light
+
+    double transmittance(int light, double sigma_t, int i, int j, int k) const {
+        return std::exp(-sigma_t * tau_rho[static_cast<size_t>(light)](i, j, k));
+    }
+    // Reduced-incident fluence ∫ I_ri dw = Σ E0 T (W/m²) in band b at cell (i, j, k).
+    double fluence_reduced(const Medium& m, int b, int i, int j, int k) const;
+    // First-scatter source moments (DESIGN §1), band b, cell (i, j, k):
+    //   Q0 = (1/4π) Σ kappa a E0 T,  Q1 = (1/4π) ∫ Q w dw = Σ g (1/4π) kappa a E0 T w_light.
+    double Q0(const Medium& m, int b, int i, int j, int k) const;
+    Vec3 Q1(const Medium& m, int b, int i, int j, int k) const;
+};
+
+struct DiffuseSolution {
+    std::vector<Field<double>> fluence;         // per band, 4πU, W/m², owned + 1 ghost
+    std::vector<Field<double>> flux;            // per band, F (3 components), or empty
+    std::vector<Field<double>> fluence_stderr;  // per band standard error (Monte Carlo), or empty
+};
+
+struct SolveContext {
+    const Scene& scene;
+    const Decomposition& decomp;
+    const Medium& medium;
+    const LightTransport& light;
+    Report& report;
+};
+
+class ScatteringModel {
+public:
+    virtual ~ScatteringModel() = default;
+    virtual std::string name() const = 0;
+    // Effective options, echoed by rank 0 and stored in the HDF5 output.
+    virtual nlohmann::json options() const { return nlohmann::json::object(); }
+    // Collective over ctx.decomp.comm(). Fills out.fluence (and flux/stderr where it can).
+    // Throws Error (on every rank) when it cannot produce a trustworthy result.
+    virtual void solve(const SolveContext& ctx, DiffuseSolution& out) = 0;
+};
+
+// Zero-initialized fluence fields for every band on d's local box (+1 ghost).
+DiffuseSolution zero_solution(const Decomposition& d, int nbands);
+
+}  // namespace nimbus

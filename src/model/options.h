@@ -1,0 +1,34 @@
+// Options of each multiple-scattering model: plain structs with defaults and validate().
+// Only io/ parses text into them ([model.<name>] tables); models take them typed.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace nimbus {
+
+// Forward light tracing reference (solvers/montecarlo).
+struct MonteCarloOptions {
+    std::int64_t photons = 1'000'000;   // photon paths to trace (all lights together)
+    double time_budget = 0.0;           // seconds, 0 = no limit
+    double target_rel_error = 0.0;      // stop when the relative standard error of the total
+                                        // diffuse fluence falls below this (0 = off)
+    std::uint64_t seed = 1;             // counter-based RNG key: same seed, same result, any rank count
+    int batches = 32;                   // batch means for the per-cell standard error (>= 2)
+    double roulette_weight = 0.05;      // Russian roulette below this weight (survival 0.5)
+    double max_replicated_memory_gb = 8.0;  // the density grid is replicated on every rank
+    bool image = false;                 // also path-trace the camera image
+    int samples_per_pixel = 64;         // for the path-traced image
+    void validate() const;
+};
+
+// The diffusion model on hypre (solvers/diffusion).
+struct DiffusionOptions {
+    std::string solver = "pfmg-pcg";  // pfmg | smg | pfmg-pcg | smg-pcg | petsc
+    double tolerance = 1e-8;          // relative residual
+    int max_iterations = 200;
+    int margin = 2;                   // cells of margin around the bounding box of non-empty cells
+    void validate() const;
+};
+
+}  // namespace nimbus

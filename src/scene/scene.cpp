@@ -1,0 +1,92 @@
+#include "src/scene/scene.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+
+#include "src/core/error.h"
+
+namespace nimbus {
+namespace {
+
+void require(bool ok, const std::string& msg) {
+    if (!ok) throw Error(msg);
+}
+
+void require_bands(const std::vector<double>& v, int nb, const char* key) {
+    require(static_cast<int>(v.size()) == nb || v.size() == 1,
+            fmt::format("{} has {} values but the scene has {} band(s): give 1 or {}", key,
+                        v.size(), nb, nb));
+    for (double x : v)
+        require(std::isfinite(x) && x >= 0.0, fmt::format("{} = {} must be finite and >= 0", key, x));
+}
+
+}  // namespace
+
+void Scene::validate() const {
+    for (int d = 0; d < 3; ++d)
+        require(grid.n[d] > 0, fmt::format("grid.n{} = {} must be >= 1 (zero-size grid)", "xyz"[d], grid.n[d]));
+    require(std::isfinite(grid.h()) && grid.h() > 0,
+            fmt::format("grid.cell_size = {} must be > 0", grid.cell_size));
+    require(!bands.empty(), "optics: at least one band is required");
+    for (size_t b = 0; b < bands.size(); ++b) {
+        const auto& o = bands[b];
+        require(std::isfinite(o.sigma_t) && o.sigma_t >= 0,
+                fmt::format("optics band '{}': sigma_t = {} must be finite and >= 0", o.name, o.sigma_t));
+        require(o.albedo >= 0 && o.albedo <= 1,
+                fmt::format("optics band '{}': albedo = {} is outside [0, 1]", o.name, o.albedo));
+        require(std::abs(o.g) < 1, fmt::format("optics band '{}': g = {} must satisfy |g| < 1", o.name, o.g));
+    }
+    require(std::isfinite(medium.density) && medium.density >= 0,
+            fmt::format("medium.density = {} must be finite and >= 0", medium.density));
+    if (sun.enabled) {
+        require(norm(sun.direction) > 0 && std::isfinite(norm(sun.direction)),
+                "sun.direction must be a non-zero finite vector");
+        require_bands(sun.irradiance, nbands(), "sun.irradiance");
+    }
+    if (!sky.radiance.empty()) {
+        require_bands(sky.radiance, nbands(), "sky.radiance");
+        require(sky.directions >= 1 && sky.directions <= 4096, "sky.directions must be in [1, 4096]");
+    }
+    require(camera.width > 0 && camera.height > 0 && camera.width <= 16384 && camera.height <= 16384,
+            "camera.resolution must be between 1 and 16384 pixels per side");
+    require(camera.fov_deg > 0 && camera.fov_deg < 180, "camera.fov must be in (0, 180) degrees");
+    const Vec3 view = camera.look_at - camera.position;
+    require(norm(view) > 0, "camera.look_at equals camera.position: the camera looks at nothing");
+    require(norm(cross(view, camera.up)) > 1e-9 * norm(view) * norm(camera.up),
+            "camera.up is parallel to the view direction");
+    require_bands(background.color, nbands(), "background.color");
+    require(background.ground_albedo >= 0 && background.ground_albedo <= 1,
+            "background.ground_albedo must be in [0, 1]");
+    require(render.step > 0 && render.step <= 4, "render.step must be in (0, 4] cells");
+    require(render.early_termination >= 0 && render.early_termination < 1,
+            "render.early_termination must be in [0, 1)");
+    require_bands(render.emission_color, nbands(), "render.emission_color");
+    require(render.exposure > 0 && std::isfinite(render.exposure), "render.exposure must be > 0");
+    require(!output.name.empty() && output.name.find('/') == std::string::npos,
+            "output.name must be a plain file name without '/'");
+}
+
+const char* to_string(RenderMode m) {
+    switch (m) {
+        case RenderMode::absorption: return "absorption";
+        case RenderMode::emission: return "emission";
+        case RenderMode::emission_absorption: return "emission_absorption";
+        case RenderMode::single_unshadowed: return "single_unshadowed";
+        case RenderMode::scattering: return "scattering";
+    }
+    return "?";
+}
+
+const char* to_string(MediumSpec::Kind k) {
+    switch (k) {
+        case MediumSpec::Kind::cumulus: return "cumulus";
+        case MediumSpec::Kind::box: return "box";
+        case MediumSpec::Kind::sphere: return "sphere";
+        case MediumSpec::Kind::hdf5: return "hdf5";
+        case MediumSpec::Kind::raw: return "raw";
+    }
+    return "?";
+}
+
+}  // namespace nimbus
