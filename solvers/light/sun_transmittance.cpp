@@ -1,0 +1,148 @@
+#include "solvers/light/sun_transmittance.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+
+#include "src/core/error.h"
+#include "src/core/halo.h"
+
+namespace nimbus {
+namespace {
+
+// The fixed stencil of one direction: segment pieces (cell offset, length) and the bilinear
+// taps (cell offset, weight) of the upwind plane. Same for every cell.
+struct Stencil {
+    struct Piece { Int3 off; double length; };
+    struct Tap { Int3 off; double weight; };
+    std::vector<Piece> pieces;
+    std::array<Tap, 4> taps;
+    int axis_m = 2;
+};
+
+// m: the axis whose upwind layer the segment starts from. Normally the dominant axis of w
+// (then |offsets| <= 1); with periodic x/y it is z, and the upwind point may lie several cells
+// away along x/y (f > 1), which periodic wrapping makes available.
+Stencil make_stencil(const Vec3& w, double h, int m) {
+    Stencil st;
+    st.axis_m = m;
+    const double wm = std::abs(w[m]);
+    const double t = h / wm;  // segment length from the upwind plane to the centre
+    // Position relative to the centre, in cells: x(u) = (u - 1) * w / |w_m| for u in [0, 1];
+    // it crosses a cell face where |x_a| = q + 1/2.
+    std::vector<double> breaks{0.0, 1.0};
+    for (int a = 0; a < 3; ++a) {
+        const double f = std::abs(w[a]) / wm;
+        for (int q = 0; q + 0.5 < f; ++q) breaks.push_back(1.0 - (q + 0.5) / f);
+    }
+    std::sort(breaks.begin(), breaks.end());
+    for (size_t q = 0; q + 1 < breaks.size(); ++q) {
+        const double du = breaks[q + 1] - breaks[q];
+        if (du <= 1e-15) continue;
+        const double um = 0.5 * (breaks[q] + breaks[q + 1]);
+        Int3 off{};
+        for (int a = 0; a < 3; ++a) off[a] = static_cast<int>(std::lround((um - 1.0) * w[a] / wm));
+        st.pieces.push_back({off, du * t});
+    }
+    // Upwind plane point p: one cell back along m, f_a = |w_a|/|w_m| cells back along a; the
+    // taps are the cells floor(f_a) and floor(f_a) + 1 back, weighted by the fractional part.
+    const int a = (m + 1) % 3, b = (m + 2) % 3;
+    const double fa = std::abs(w[a]) / wm, fb = std::abs(w[b]) / wm;
+    const int ia = static_cast<int>(std::floor(fa)), ib = static_cast<int>(std::floor(fb));
+    const double ra = fa - ia, rb = fb - ib;
+    const int sa = w[a] < 0 ? -1 : 1, sb = w[b] < 0 ? -1 : 1, sm = w[m] < 0 ? -1 : 1;
+    int q = 0;
+    for (int da = 0; da < 2; ++da)
+        for (int db = 0; db < 2; ++db) {
+            Int3 off{};
+            off[m] = -sm;
+            off[a] = -sa * (ia + da);
+            off[b] = -sb * (ib + db);
+            st.taps[static_cast<size_t>(q++)] = {off, (da ? ra : 1 - ra) * (db ? rb : 1 - rb)};
+        }
+    return st;
+}
+
+int dominant_axis(const Vec3& w) {
+    int m = 0;
+    for (int a = 1; a < 3; ++a) if (std::abs(w[a]) > std::abs(w[m])) m = a;
+    return m;
+}
+
+}  // namespace
+
+LightTransport compute_light_transport(const Decomposition& d, const Medium& m,
+                                       const std::vector<DirectionalLight>& lights, Report& report,
+                                       const sweep::SweepOptions& opt) {
+    ScopedTimer timer(report, "light");
+    if (!d.is_slab_z())
+        throw Error(fmt::format("the light pass sweeps along z and needs slabs along z "
+                                "(grid.process_grid = [1, 1, P]); got {}", d.describe()));
+    LightTransport lt;
+    lt.lights = lights;
+    const Int3 n = d.global().hi;
+    double wait = 0;
+    for (const auto& light : lights) {
+        const bool periodic_xy = d.periodic(0) || d.periodic(1);
+        if (periodic_xy && std::abs(light.w.z) < 1e-3)
+            throw Error(fmt::format("light '{}' is horizontal: with periodic x/y boundaries it never "
+                                    "leaves the domain", light.name));
+        const Stencil st = make_stencil(light.w, m.grid.h, periodic_xy ? 2 : dominant_axis(light.w));
+        Field<double> tau(d.local(), 1, 1, 0.0);  // ghosts outside the domain stay 0: vacuum
+        // Periodic x/y: wrap indices into the domain (x/y are never split: slabs along z).
+        auto wrap = [&](int v, int axis) {
+            return d.periodic(axis) ? (v % n[axis] + n[axis]) % n[axis] : v;
+        };
+        const auto& rho = m.rho;
+        sweep::SweepOptions sopt = opt;
+        if (periodic_xy) sopt.tile_rows = n[1];  // a whole upwind layer is done before the next
+        auto kernel = [&](int i, int j, int k) {
+            double t = 0.0;
+            for (const auto& p : st.pieces)
+                t += p.length * rho(wrap(i + p.off[0], 0), wrap(j + p.off[1], 1), k + p.off[2]);
+            for (const auto& tap : st.taps)
+                if (tap.weight != 0.0)
+                    t += tap.weight * tau(wrap(i + tap.off[0], 0), wrap(j + tap.off[1], 1), k + tap.off[2]);
+            tau(i, j, k) = t;
+        };
+        const auto stats = sweep::run(d, tau, sweep::Octant::of(light.w), sopt, kernel);
+        wait += stats.wait_seconds;
+        exchange_halo(tau, d);
+        lt.tau_rho.push_back(std::move(tau));
+    }
+    report.values()["light"]["terms"] = lights.size();
+    report.values()["light"]["pipeline_wait_seconds_rank0"] = wait;
+    return lt;
+}
+
+double exact_tau_rho(const std::vector<double>& rho, const Int3& n, double h, const Vec3& w, int i,
+                     int j, int k) {
+    // March from the cell centre along -w through the cell grid (units of cells).
+    const Vec3 dir = -w / norm(w);
+    double pos[3] = {i + 0.5, j + 0.5, k + 0.5};
+    int cell[3] = {i, j, k}, step[3];
+    double tmax[3], tdelta[3];
+    for (int a = 0; a < 3; ++a) {
+        const double da = dir[a];
+        step[a] = da > 0 ? 1 : -1;
+        tdelta[a] = da != 0 ? std::abs(1.0 / da) : std::numeric_limits<double>::infinity();
+        const double next = da > 0 ? std::floor(pos[a]) + 1.0 : std::floor(pos[a]);
+        tmax[a] = da != 0 ? (next - pos[a]) / da : std::numeric_limits<double>::infinity();
+    }
+    double t = 0.0, tau = 0.0;
+    while (true) {
+        const int a = tmax[0] < tmax[1] ? (tmax[0] < tmax[2] ? 0 : 2) : (tmax[1] < tmax[2] ? 1 : 2);
+        const double r = rho[(static_cast<size_t>(cell[2]) * n[1] + cell[1]) * n[0] + cell[0]];
+        tau += r * (tmax[a] - t) * h;
+        t = tmax[a];
+        cell[a] += step[a];
+        tmax[a] += tdelta[a];
+        if (cell[a] < 0 || cell[a] >= n[a]) break;
+    }
+    return tau;
+}
+
+}  // namespace nimbus

@@ -18,6 +18,7 @@
 #include "src/core/field.h"
 #include "src/core/report.h"
 #include "src/physics/lights.h"
+#include "src/render/image.h"
 #include "src/scene/medium.h"
 #include "src/scene/scene.h"
 
@@ -64,6 +65,10 @@ public:
     // Collective over ctx.decomp.comm(). Fills out.fluence (and flux/stderr where it can).
     // Throws Error (on every rank) when it cannot produce a trustworthy result.
     virtual void solve(const SolveContext& ctx, DiffuseSolution& out) = 0;
+    // Models that render the camera image themselves (Monte Carlo path tracing) return true;
+    // the pipeline then calls render() (collective; image on rank 0) instead of the ray caster.
+    virtual bool renders_image() const { return false; }
+    virtual Image render(const SolveContext& /*ctx*/) { return {}; }
 };
 
 // Zero-initialized fluence fields for every band on d's local box (+1 ghost).

@@ -1,0 +1,136 @@
+// The light pass against Beer-Lambert and a brute-force ray march; 1 rank vs 2 ranks.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "solvers/light/sun_transmittance.h"
+#include "src/core/halo.h"
+#include "tests/support/mpi_test.h"
+
+namespace nimbus {
+namespace {
+
+struct LitMedium {
+    Decomposition d;
+    Medium m;
+};
+
+// A medium on comm with density rho_of(i, j, k), cell size h, periodic as given.
+template <class F>
+LitMedium make(MPI_Comm comm, const Int3& n, double h, F rho_of, std::array<bool, 3> periodic = {false, false, false}) {
+    LitMedium s{Decomposition(comm, n, {0, 0, 0}, periodic), {}};
+    s.m.grid.n = n;
+    s.m.grid.h = h;
+    s.m.bands = {BandOptics{}};
+    s.m.rho = Field<double>(s.d.local(), 1, 1, 0.0);
+    for_each_cell(s.d.local(), [&](int i, int j, int k) { s.m.rho(i, j, k) = rho_of(i, j, k); });
+    exchange_halo(s.m.rho, s.d);
+    return s;
+}
+
+TEST(SunTransmittance, BeerLambertInAHomogeneousSlabNormalAndOblique) {
+    // Slab filling x/y with periodic boundaries, density 2, sun from above at 0° and 60°.
+    const Int3 n{6, 6, 20};
+    const double h = 0.5, rho = 2.0;
+    LitMedium s = make(MPI_COMM_WORLD, n, h, [&](int, int, int) { return rho; }, {true, true, false});
+    for (double theta_deg : {0.0, 60.0, 33.0}) {
+        const double th = theta_deg * std::numbers::pi / 180;
+        const Vec3 w{std::sin(th) * 0.6, std::sin(th) * 0.8, -std::cos(th)};
+        Report r;
+        const auto lt = compute_light_transport(s.d, s.m, {{"sun", w, {1.0}}}, r);
+        for_each_cell(s.d.local(), [&](int i, int j, int k) {
+            const double depth = (n[2] - (k + 0.5)) * h;  // below the top face
+            const double want = rho * depth / std::cos(th);
+            ASSERT_NEAR(lt.tau_rho[0](i, j, k), want, 1e-12 * want) << theta_deg;
+        });
+    }
+}
+
+TEST(SunTransmittance, ExactForAxisAlignedLightInAnyMedium) {
+    const Int3 n{7, 5, 12};
+    auto rho_of = [](int i, int j, int k) { return std::fmod(0.37 * i + 1.3 * j * j + 0.71 * k, 2.0); };
+    LitMedium s = make(MPI_COMM_WORLD, n, 1.0, rho_of);
+    std::vector<double> full(static_cast<size_t>(n[0] * n[1] * n[2]));
+    for_each_cell(Box{{0, 0, 0}, n}, [&](int i, int j, int k) { full[(k * n[1] + j) * n[0] + i] = rho_of(i, j, k); });
+    for (Vec3 w : {Vec3{0, 0, -1}, Vec3{0, 0, 1}, Vec3{1, 0, 0}, Vec3{0, -1, 0}}) {
+        Report r;
+        const auto lt = compute_light_transport(s.d, s.m, {{"sun", w, {1.0}}}, r);
+        for_each_cell(s.d.local(), [&](int i, int j, int k) {
+            ASSERT_NEAR(lt.tau_rho[0](i, j, k), exact_tau_rho(full, n, 1.0, w, i, j, k), 1e-12);
+        });
+    }
+}
+
+TEST(SunTransmittance, ExactInALayeredMediumAtObliqueIncidence) {
+    // Density varies only with z, periodic x/y: tau is constant on each layer, so the bilinear
+    // upwind interpolation is exact; the exact answer is the column sum over the slant path.
+    const Int3 n{16, 16, 16};
+    auto rho_of = [](int, int, int k) { return k % 3 == 0 ? 0.0 : 1.0 + 0.5 * k; };
+    LitMedium s = make(MPI_COMM_WORLD, n, 1.0, rho_of, {true, true, false});
+    std::vector<double> full(static_cast<size_t>(n[0] * n[1] * n[2]));
+    for_each_cell(Box{{0, 0, 0}, n}, [&](int i, int j, int k) { full[(k * n[1] + j) * n[0] + i] = rho_of(i, j, k); });
+    for (Vec3 w : {Vec3{0.2, 0.1, -1.0}, Vec3{1.3, -0.9, -0.8}}) {  // mainly vertical, and low
+        w = normalized(w);
+        Report r;
+        const auto lt = compute_light_transport(s.d, s.m, {{"sun", w, {1.0}}}, r);
+        for_each_cell(s.d.local(), [&](int i, int j, int k) {
+            double column = 0.5 * rho_of(i, j, k);
+            for (int q = k + 1; q < n[2]; ++q) column += rho_of(i, j, q);
+            ASSERT_NEAR(lt.tau_rho[0](i, j, k), column / std::abs(w.z), 1e-10) << i << " " << j << " " << k;
+        });
+    }
+}
+
+// Max |tau - exact| / max tau for a smooth blob with a kinked edge at N³, oblique sun.
+double blob_relative_error(int N) {
+    const Int3 n{N, N, N};
+    auto rho_of = [N](int i, int j, int k) {
+        const double x = (i + 0.5) / N - 0.5, y = (j + 0.5) / N - 0.5, z = (k + 0.5) / N - 0.5;
+        return std::max(0.0, 1.0 - (x * x + y * y + z * z) / 0.12);
+    };
+    LitMedium s = make(MPI_COMM_WORLD, n, 24.0 / N, rho_of);
+    std::vector<double> full(static_cast<size_t>(n[0] * n[1] * n[2]));
+    for_each_cell(Box{{0, 0, 0}, n}, [&](int i, int j, int k) { full[(k * n[1] + j) * n[0] + i] = rho_of(i, j, k); });
+    const Vec3 w = normalized(Vec3{0.55, 0.35, -0.76});
+    Report r;
+    const auto lt = compute_light_transport(s.d, s.m, {{"sun", w, {1.0}}}, r);
+    double max_err = 0, max_tau = 0;
+    for_each_cell(s.d.local(), [&](int i, int j, int k) {
+        const double e = exact_tau_rho(full, n, 24.0 / N, w, i, j, k);
+        max_err = std::max(max_err, std::abs(lt.tau_rho[0](i, j, k) - e));
+        max_tau = std::max(max_tau, e);
+    });
+    MPI_Allreduce(MPI_IN_PLACE, &max_err, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    MPI_Allreduce(MPI_IN_PLACE, &max_tau, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    return max_err / max_tau;
+}
+
+TEST(SunTransmittance, HeterogeneousCloudConvergesToBruteForce) {
+    // The bilinear upwind interpolation is the only error: it is not exact for a heterogeneous
+    // medium under an oblique sun, but converges. Measured: 11.4% at 24³, 6.0% at 48³, 3.8% at 96³
+    // (max error over all cells relative to the largest optical depth, at the blob's kinked edge).
+    const double e24 = blob_relative_error(24), e48 = blob_relative_error(48);
+    EXPECT_LT(e24, 0.12);
+    EXPECT_LT(e48, 0.065);
+    EXPECT_LT(e48, 0.6 * e24);
+}
+
+TEST(SunTransmittance, OneRankEqualsTwoRanks) {
+    const Int3 n{20, 18, 22};
+    auto rho_of = [](int i, int j, int k) { return 0.5 + 0.5 * std::sin(0.3 * i + 0.7 * j) * std::cos(0.4 * k); };
+    LitMedium world = make(MPI_COMM_WORLD, n, 0.7, rho_of);
+    LitMedium self = make(MPI_COMM_SELF, n, 0.7, rho_of);
+    const std::vector<DirectionalLight> lights{{"sun", normalized(Vec3{0.55, 0.35, -0.76}), {1.0}},
+                                               {"low", normalized(Vec3{-0.9, 0.2, -0.3}), {1.0}},
+                                               {"up", normalized(Vec3{0.1, -0.3, 0.9}), {1.0}}};
+    Report r1, r2;
+    const auto a = compute_light_transport(world.d, world.m, lights, r1);
+    const auto b = compute_light_transport(self.d, self.m, lights, r2);
+    for (size_t l = 0; l < lights.size(); ++l)
+        for_each_cell(world.d.local(), [&](int i, int j, int k) {
+            ASSERT_NEAR(a.tau_rho[l](i, j, k), b.tau_rho[l](i, j, k), 1e-12 * (1 + b.tau_rho[l](i, j, k)));
+        });
+}
+
+}  // namespace
+}  // namespace nimbus
