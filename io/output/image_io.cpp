@@ -1,0 +1,147 @@
+// OpenEXR and PNG writers/readers for nimbus::Image (see image_io.h). Not collective.
+//
+// EXR: scanline file, ZIP compression, FLOAT channels R, G, B, A (+ stderr.R/G/B when the image
+// carries a Monte Carlo standard error), linear radiance W/(m² sr), bit-exact on read.
+// PNG: 8-bit RGBA through libpng's simplified write API, which also writes the sRGB chunk;
+// colour = srgb8(v * exposure) (io/output/srgb.h), alpha = round(255 clamp(A, 0, 1)) with no
+// exposure (it is an opacity, not a radiance), not premultiplied.
+// Both go to "<path>.tmp" first and are renamed into place when complete.
+#include "io/output/image_io.h"
+
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
+#include <ImfOutputFile.h>
+#include <png.h>
+
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <system_error>
+#include <vector>
+
+#include "io/output/srgb.h"
+#include "src/core/error.h"
+
+namespace nimbus {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr const char* kRgbaNames[4] = {"R", "G", "B", "A"};
+constexpr const char* kStderrNames[3] = {"stderr.R", "stderr.G", "stderr.B"};
+
+void check_image(const std::string& path, const Image& img) {
+    const size_t pixels = static_cast<size_t>(std::max(img.width, 0)) * std::max(img.height, 0);
+    if (img.width <= 0 || img.height <= 0 || img.rgba.size() != pixels * 4)
+        throw Error("cannot write image file '" + path + "': empty or inconsistent image");
+    if (!img.stderr_rgb.empty() && img.stderr_rgb.size() != pixels * 3)
+        throw Error("cannot write image file '" + path + "': stderr_rgb has the wrong size");
+}
+
+// Renames tmp to path; on failure removes tmp and throws.
+void move_into_place(const std::string& tmp, const std::string& path) {
+    std::error_code ec;
+    fs::rename(tmp, path, ec);
+    if (ec) {
+        fs::remove(tmp, ec);
+        throw Error("cannot write image file '" + path + "': " + ec.message());
+    }
+}
+
+Imf::Slice float_slice(const float* base, size_t components, int width, float fill = 0.0f) {
+    const size_t x_stride = components * sizeof(float);
+    return Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(base)), x_stride,
+                      x_stride * static_cast<size_t>(width), 1, 1, fill);
+}
+
+}  // namespace
+
+void write_exr(const std::string& path, const Image& img) {
+    check_image(path, img);
+    const std::string tmp = path + ".tmp";
+    try {
+        Imf::Header header(img.width, img.height);
+        header.compression() = Imf::ZIP_COMPRESSION;
+        Imf::FrameBuffer fb;
+        for (int c = 0; c < 4; ++c) {
+            header.channels().insert(kRgbaNames[c], Imf::Channel(Imf::FLOAT));
+            fb.insert(kRgbaNames[c], float_slice(img.rgba.data() + c, 4, img.width));
+        }
+        if (!img.stderr_rgb.empty()) {
+            for (int c = 0; c < 3; ++c) {
+                header.channels().insert(kStderrNames[c], Imf::Channel(Imf::FLOAT));
+                fb.insert(kStderrNames[c], float_slice(img.stderr_rgb.data() + c, 3, img.width));
+            }
+        }
+        Imf::OutputFile file(tmp.c_str(), header);
+        file.setFrameBuffer(fb);
+        file.writePixels(img.height);
+    } catch (const std::exception& e) {
+        std::error_code ec;
+        fs::remove(tmp, ec);
+        throw Error("cannot write image file '" + path + "': " + e.what());
+    }
+    move_into_place(tmp, path);
+}
+
+Image read_exr(const std::string& path) {
+    try {
+        Imf::InputFile file(path.c_str());
+        const Imath::Box2i dw = file.header().dataWindow();
+        const int width = dw.max.x - dw.min.x + 1, height = dw.max.y - dw.min.y + 1;
+        Image img(width, height);
+        const Imf::ChannelList& channels = file.header().channels();
+        const bool has_stderr = channels.findChannel(kStderrNames[0]) != nullptr;
+        if (has_stderr) img.stderr_rgb.assign(static_cast<size_t>(width) * height * 3, 0.0f);
+
+        // Slices are addressed by absolute data-window coordinates: shift the base pointer.
+        const std::ptrdiff_t origin = static_cast<std::ptrdiff_t>(dw.min.y) * width + dw.min.x;
+        Imf::FrameBuffer fb;
+        for (int c = 0; c < 4; ++c)
+            fb.insert(kRgbaNames[c], float_slice(img.rgba.data() - origin * 4 + c, 4, width,
+                                                 c == 3 ? 1.0f : 0.0f));
+        if (has_stderr)
+            for (int c = 0; c < 3; ++c)
+                fb.insert(kStderrNames[c],
+                          float_slice(img.stderr_rgb.data() - origin * 3 + c, 3, width));
+        file.setFrameBuffer(fb);
+        file.readPixels(dw.min.y, dw.max.y);
+        return img;
+    } catch (const Error&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw Error("cannot read image file '" + path + "': " + e.what());
+    }
+}
+
+void write_png(const std::string& path, const Image& img, double exposure) {
+    check_image(path, img);
+    const size_t pixels = static_cast<size_t>(img.width) * img.height;
+    std::vector<std::uint8_t> bytes(pixels * 4);
+    for (size_t p = 0; p < pixels; ++p) {
+        for (int c = 0; c < 3; ++c) bytes[p * 4 + c] = srgb8(img.rgba[p * 4 + c] * exposure);
+        bytes[p * 4 + 3] = linear8(img.rgba[p * 4 + 3]);
+    }
+
+    const std::string tmp = path + ".tmp";
+    png_image png;
+    std::memset(&png, 0, sizeof(png));
+    png.version = PNG_IMAGE_VERSION;
+    png.width = static_cast<png_uint_32>(img.width);
+    png.height = static_cast<png_uint_32>(img.height);
+    png.format = PNG_FORMAT_RGBA;  // 8-bit sRGB, straight alpha; libpng adds the sRGB chunk
+    const int ok = png_image_write_to_file(&png, tmp.c_str(), 0, bytes.data(), 0, nullptr);
+    if (!ok) {
+        const std::string why = png.message;
+        png_image_free(&png);
+        std::error_code ec;
+        fs::remove(tmp, ec);
+        throw Error("cannot write image file '" + path + "': " + why);
+    }
+    move_into_place(tmp, path);
+}
+
+}  // namespace nimbus
