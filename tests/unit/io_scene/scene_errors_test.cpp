@@ -1,0 +1,160 @@
+// Every bad input gives ONE line naming the file, the line, the key and what is allowed.
+// Each case edits one line of a small valid scene; the expected line number is found in the
+// edited text itself, independently of the loader.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <initializer_list>
+#include <string>
+
+#include "io/scene/scene_toml.h"
+#include "src/core/error.h"
+
+namespace nimbus {
+namespace {
+
+const std::string kBase =
+    "title = \"t\"\n"
+    "[grid]\n"
+    "n = [8, 8, 8]\n"
+    "cell_size = 1.0\n"
+    "[medium]\n"
+    "kind = \"box\"\n"
+    "density = 1.0\n"
+    "[[optics]]\n"
+    "name = \"gray\"\n"
+    "sigma_t = 1.0\n"
+    "albedo = 0.9\n"
+    "g = 0.5\n"
+    "[camera]\n"
+    "position = [0.5, -1.0, 0.5]\n"
+    "look_at = [0.5, 0.5, 0.5]\n"
+    "[render]\n"
+    "mode = \"scattering\"\n"
+    "[model]\n"
+    "name = \"single\"\n";
+
+// kBase with the line `from` replaced by `to` (or `to` appended when `from` is empty).
+std::string edit(const std::string& from, const std::string& to) {
+    if (from.empty()) return kBase + to + "\n";
+    std::string s = kBase;
+    const auto at = s.find(from + "\n");
+    EXPECT_NE(at, std::string::npos) << from;
+    return s.replace(at, from.size(), to);
+}
+
+int line_of(const std::string& text, const std::string& needle) {
+    const auto at = text.find(needle);
+    EXPECT_NE(at, std::string::npos) << needle;
+    return 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(at), '\n'));
+}
+
+// Loads `text` as "bad.toml" and checks the Error: one line, "bad.toml:<line of marker>:",
+// and every expected piece.
+void expect_error(const std::string& text, const std::string& marker,
+                  std::initializer_list<std::string> pieces) {
+    try {
+        load_scene_string(text, "bad.toml");
+        ADD_FAILURE() << "no error for:\n" << text;
+    } catch (const Error& e) {
+        const std::string msg = e.what();
+        EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+        const std::string loc = "bad.toml:" + std::to_string(line_of(text, marker)) + ":";
+        EXPECT_EQ(msg.rfind(loc, 0), 0u) << "expected to start with " << loc << ": " << msg;
+        for (const auto& p : pieces) EXPECT_NE(msg.find(p), std::string::npos) << "missing '" << p << "' in: " << msg;
+    }
+}
+
+TEST(SceneErrors, BaseSceneIsValid) { EXPECT_NO_THROW(load_scene_string(kBase, "bad.toml")); }
+
+TEST(SceneErrors, MalformedToml) {
+    const std::string text = edit("cell_size = 1.0", "cell_size = 1.0.0");
+    expect_error(text, "cell_size = 1.0.0", {"malformed TOML"});
+    const std::string dup = edit("g = 0.5", "g = 0.5\ng = 0.6");
+    expect_error(dup, "g = 0.6", {"malformed TOML", "already exists"});
+}
+
+TEST(SceneErrors, UnknownKeyListsAllowedKeys) {
+    const std::string text = edit("cell_size = 1.0", "cell_size = 1.0\nfoo = 3");
+    expect_error(text, "foo = 3", {"grid.foo: unknown key; allowed: n, cell_size, unit"});
+    const std::string table = edit("", "[lights]\nsun = 1");
+    expect_error(table, "[lights]", {"lights: unknown key", "allowed: title, grid, medium"});
+}
+
+TEST(SceneErrors, MisspelledKeySuggestsTheClosest) {
+    const std::string text = edit("density = 1.0", "densty = 1.0");
+    expect_error(text, "densty", {"medium.densty: unknown key; did you mean 'density'?", "allowed: kind, density"});
+    const std::string nested = edit("", "[model.montecarlo]\nphotns = 5");
+    expect_error(nested, "photns", {"model.montecarlo.photns", "did you mean 'photons'?"});
+    const std::string choice = edit("mode = \"scattering\"", "mode = \"scatering\"");
+    expect_error(choice, "scatering", {"render.mode", "did you mean 'scattering'?", "allowed: absorption"});
+}
+
+TEST(SceneErrors, AlbedoOutsideZeroOne) {
+    const std::string text = edit("albedo = 0.9", "albedo = 1.2");
+    expect_error(text, "albedo = 1.2", {"optics[0].albedo", "1.2 is outside [0, 1]"});
+    const std::string second = kBase + "[[optics]]\nname = \"b2\"\nalbedo = -0.1\n";
+    expect_error(second, "albedo = -0.1", {"optics[1].albedo", "outside [0, 1]"});
+}
+
+TEST(SceneErrors, AsymmetryMustBeBelowOne) {
+    expect_error(edit("g = 0.5", "g = 1.0"), "g = 1.0", {"optics[0].g", "|g| < 1"});
+    expect_error(edit("g = 0.5", "g = -1"), "g = -1", {"optics[0].g", "|g| < 1"});
+}
+
+TEST(SceneErrors, ZeroSizeGrid) {
+    expect_error(edit("n = [8, 8, 8]", "n = [8, 0, 8]"), "n = [8, 0, 8]", {"grid.ny = 0", "zero-size"});
+}
+
+TEST(SceneErrors, CameraLookingAtNothing) {
+    expect_error(edit("look_at = [0.5, 0.5, 0.5]", "look_at = [0.5, -1.0, 0.5]"), "look_at",
+                 {"camera.look_at equals camera.position"});
+}
+
+TEST(SceneErrors, NegativeDensityScale) {
+    expect_error(edit("density = 1.0", "density = -2.0"), "density = -2.0", {"medium.density = -2", ">= 0"});
+}
+
+TEST(SceneErrors, WrongType) {
+    expect_error(edit("n = [8, 8, 8]", "n = \"big\""), "n = \"big\"",
+                 {"grid.n must be an array of 3 integers", "found string \"big\""});
+    expect_error(edit("n = [8, 8, 8]", "n = [8, 8.5, 8]"), "n = [8", {"grid.n must be an array of 3 integers"});
+    expect_error(edit("albedo = 0.9", "albedo = \"high\""), "albedo", {"optics[0].albedo must be a number"});
+    expect_error(edit("", "[sun]\nenabled = \"yes\""), "enabled", {"sun.enabled must be true or false"});
+    expect_error(edit("", "[sun]\nirradiance = [1, \"x\"]"), "irradiance",
+                 {"sun.irradiance must be a number or an array of numbers"});
+    expect_error("sun = 3\n" + kBase, "sun = 3", {"sun must be a table (found integer 3)"});
+}
+
+TEST(SceneErrors, OtherRanges) {
+    expect_error(edit("kind = \"box\"", "kind = \"cube\""), "cube",
+                 {"medium.kind = \"cube\" is not allowed", "allowed: cumulus, box, sphere, hdf5, raw"});
+    expect_error(edit("", "[model.montecarlo]\nbatches = 1"), "batches", {"model.montecarlo.batches", "[2, 4096]"});
+    expect_error(edit("", "[model.diffusion]\nsolver = \"jacobi\""), "jacobi", {"model.diffusion.solver", "pfmg"});
+    expect_error(edit("kind = \"box\"", "kind = \"raw\""), "kind = \"raw\"", {"medium.kind", "needs medium.file"});
+    expect_error(edit("kind = \"box\"", "kind = \"raw\"\nfile = \"no_such_density.raw\""), "file =",
+                 {"medium.file", "no_such_density.raw", "file not found"});
+    expect_error(edit("", "[camera.x]"), "[camera.x]", {"camera.x: unknown key"});
+    expect_error(edit("name = \"single\"", "name = \"magic\""), "magic",
+                 {"model.name = \"magic\" is not allowed", "montecarlo", "diffusion"});
+    expect_error(edit("", "[sky]\nradiance = [1, 2]"), "radiance = [1, 2]",
+                 {"sky.radiance has 2 values but the scene has 1 band(s)"});
+}
+
+TEST(SceneErrors, NoOpticsAndMissingFile) {
+    try {
+        load_scene_string("title = \"x\"\n", "bad.toml");
+        ADD_FAILURE();
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("bad.toml: optics: at least one [[optics]]"), std::string::npos) << e.what();
+    }
+    try {
+        load_scene_file("/no/such/dir/scene.toml");
+        ADD_FAILURE();
+    } catch (const Error& e) {
+        EXPECT_EQ(std::string(e.what()), "/no/such/dir/scene.toml: scene file not found");
+    }
+}
+
+}  // namespace
+}  // namespace nimbus
