@@ -1,0 +1,31 @@
+// Per-cell view-source kernels: the radiance a volume element adds toward the camera per unit
+// length, J_b(x) in W/(m³ sr), for the render modes of Max 1995. Pure functions, no MPI.
+//
+//   emission, emission_absorption (Max 1995 §3 eq. 4, §4.2):  J = C kappa
+//   single_unshadowed (§5 eq. 9-10):      J = kappa a Σ_l E0_l p(mu_l)
+//   scattering (§6 eq. 13-14 + DESIGN §1): J = kappa a [Σ_l E0_l T_l p(mu_l) + fluence/(4π)
+//                                                        + (3 g / 4π) F·w_out]
+// with w_out the unit direction toward the camera (the radiance's travel direction, -d for a
+// view ray d), mu_l = w_l · w_out, w_l the light's travel direction, p the HG phase function
+// normalized to 1 over the sphere, T_l = exp(-sigma_t tau_rho_l).
+#pragma once
+
+#include <numbers>
+
+#include "src/core/vec3.h"
+#include "src/physics/phase.h"
+
+namespace nimbus {
+
+// Max 1995 eq. 4: the particle model's glow C per unit projected area gives J = C kappa.
+inline double emission_source(double C, double kappa) { return C * kappa; }
+
+// The P1 diffuse field scattered toward w_out (DESIGN §1): ∫ p I_d dw' = U + (3g/4π) F·w_out,
+// with U = fluence/(4π). `has_flux` false drops the F term.
+inline double diffuse_inscatter(double fluence, double g, bool has_flux, const Vec3& F,
+                                const Vec3& w_out) {
+    constexpr double inv_4pi = 0.25 / std::numbers::pi;
+    return fluence * inv_4pi + (has_flux ? 3.0 * g * inv_4pi * dot(F, w_out) : 0.0);
+}
+
+}  // namespace nimbus

@@ -1,0 +1,165 @@
+#include "src/render/view_volume.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+
+#include "src/core/error.h"
+#include "src/physics/lights.h"
+#include "src/render/source_kernel.h"
+
+namespace nimbus {
+namespace {
+
+// Whether f holds values on every cell of `need` (owned box + ghost layer).
+bool covers(const Field<double>& f, const Box& need, int ncomp = 1) {
+    return f.allocated().intersect(need) == need && f.ncomp() == ncomp;
+}
+
+void check_inputs(const RenderInputs& in, const Box& need) {
+    const RenderMode mode = in.scene.render.mode;
+    const int nb = in.medium.nbands();
+    if (!covers(in.medium.rho, need))
+        throw Error("render: medium.rho must cover the rank's box plus 1 ghost layer");
+    if (mode == RenderMode::single_unshadowed || mode == RenderMode::scattering) {
+        for (const auto& l : in.light.lights)
+            if (l.E0.size() != 1 && static_cast<int>(l.E0.size()) != nb)
+                throw Error(fmt::format("render: light '{}' has {} irradiance values for {} bands",
+                                        l.name, l.E0.size(), nb));
+    }
+    if (mode == RenderMode::scattering) {
+        if (in.light.tau_rho.size() != in.light.lights.size())
+            throw Error(fmt::format("render: mode 'scattering' needs tau_rho for each of the {} "
+                                    "light terms, got {}", in.light.lights.size(), in.light.tau_rho.size()));
+        for (const auto& f : in.light.tau_rho)
+            if (!covers(f, need)) throw Error("render: tau_rho must cover the rank's box plus 1 ghost layer");
+        const auto& df = in.diffuse;
+        if (!df.fluence.empty()) {
+            if (static_cast<int>(df.fluence.size()) != nb)
+                throw Error(fmt::format("render: diffuse fluence has {} bands, the medium {}",
+                                        df.fluence.size(), nb));
+            for (const auto& f : df.fluence)
+                if (!covers(f, need)) throw Error("render: diffuse fluence must cover the rank's box plus 1 ghost layer");
+        }
+        if (!df.flux.empty()) {
+            if (df.flux.size() != df.fluence.size())
+                throw Error("render: diffuse flux needs one field per band, like the fluence");
+            for (const auto& f : df.flux)
+                if (!covers(f, need, 3)) throw Error("render: diffuse flux must have 3 components on the rank's box plus 1 ghost layer");
+        }
+    }
+}
+
+// Marks the 8³ blocks of the owned box whose cells or 1-cell apron hold any density.
+void build_occupancy(ViewVolume& v) {
+    const int bs = 1 << ViewVolume::kBlockShift;
+    for (int a = 0; a < 3; ++a) v.nblocks[a] = (v.owned.size(a) + bs - 1) / bs;
+    v.occupied.assign(static_cast<size_t>(v.nblocks[0]) * v.nblocks[1] * v.nblocks[2], 0);
+    v.occupied_cells = Box{v.owned.hi, v.owned.lo};  // empty; grows below
+    const Box all = v.data.allocated();
+    const int nc = v.data.ncomp();
+    const float* rho = v.data.data();
+    for (int bk = 0; bk < v.nblocks[2]; ++bk)
+        for (int bj = 0; bj < v.nblocks[1]; ++bj)
+            for (int bi = 0; bi < v.nblocks[0]; ++bi) {
+                const Int3 b{bi, bj, bk};
+                Box cells;
+                for (int a = 0; a < 3; ++a) {
+                    cells.lo[a] = v.owned.lo[a] + b[a] * bs;
+                    cells.hi[a] = std::min(cells.lo[a] + bs, v.owned.hi[a]);
+                }
+                const Box apron = cells.grown(1).intersect(all);
+                bool any = false;
+                for (int k = apron.lo[2]; k < apron.hi[2] && !any; ++k)
+                    for (int j = apron.lo[1]; j < apron.hi[1] && !any; ++j) {
+                        const float* row = rho + v.data.index(apron.lo[0], j, k);
+                        for (int i = 0; i < apron.size(0); ++i)
+                            if (row[static_cast<std::ptrdiff_t>(i) * nc] > 0.0f) { any = true; break; }
+                    }
+                v.occupied[static_cast<size_t>((bk * v.nblocks[1] + bj) * v.nblocks[0] + bi)] = any;
+                if (!any) continue;
+                for (int a = 0; a < 3; ++a) {
+                    v.occupied_cells.lo[a] = std::min(v.occupied_cells.lo[a], cells.lo[a]);
+                    v.occupied_cells.hi[a] = std::max(v.occupied_cells.hi[a], cells.hi[a]);
+                }
+            }
+    if (v.occupied_cells.lo[0] >= v.occupied_cells.hi[0]) v.occupied_cells = Box{};
+}
+
+}  // namespace
+
+ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, const Vec3& camera) {
+    const Medium& m = in.medium;
+    const RenderSpec& rs = in.scene.render;
+    const int nb = m.nbands();
+    const Box need = d.local().grown(1);
+    check_inputs(in, need);
+
+    ViewVolume v;
+    v.grid = m.grid;
+    v.owned = d.local();
+    v.nbands = nb;
+    for (const auto& band : m.bands) v.sigma_t.push_back(band.sigma_t);
+    v.data = Field<float>(d.local(), 1, 1 + nb, 0.0f);
+
+    const bool emits = rs.mode == RenderMode::emission || rs.mode == RenderMode::emission_absorption;
+    const bool scatters = rs.mode == RenderMode::single_unshadowed || rs.mode == RenderMode::scattering;
+    const bool shadows = rs.mode == RenderMode::scattering;
+    const bool diffuse = shadows && !in.diffuse.fluence.empty();
+    const bool flux = diffuse && !in.diffuse.flux.empty();
+    const auto& lights = in.light.lights;
+    std::vector<double> J(static_cast<size_t>(nb));
+    std::vector<bool> same_g(static_cast<size_t>(nb), false), same_sigma(static_cast<size_t>(nb), false);
+    for (size_t b = 1; b < static_cast<size_t>(nb); ++b) {
+        same_g[b] = m.bands[b].g == m.bands[b - 1].g;
+        same_sigma[b] = m.bands[b].sigma_t == m.bands[b - 1].sigma_t;
+    }
+
+    for_each_cell(need, [&](int i, int j, int k) {
+        const double rho = m.rho(i, j, k);
+        float* cell = &v.data(i, j, k);
+        cell[0] = static_cast<float>(rho);
+        if (!(rho > 0.0) || !(emits || scatters)) return;  // J = 0 where there is no medium
+        Vec3 w_out{0, 0, 1};
+        if (scatters) {
+            const Vec3 to_cam = camera - m.grid.center(i, j, k);
+            if (norm(to_cam) > 0) w_out = normalized(to_cam);
+        }
+        if (emits) {
+            for (int b = 0; b < nb; ++b)
+                J[static_cast<size_t>(b)] = emission_source(band_value(rs.emission_color, b), rho * v.sigma_t[static_cast<size_t>(b)]);
+        } else {
+            // Radiance scattered toward the camera per unit sigma_s, L_b. Bands sharing g (or
+            // sigma_t) with the previous band reuse its phase value (or transmittance).
+            std::fill(J.begin(), J.end(), 0.0);
+            for (size_t l = 0; l < lights.size(); ++l) {
+                const double tau = shadows ? in.light.tau_rho[l](i, j, k) : 0.0;
+                double p = 0.0, T = 1.0;
+                for (int b = 0; b < nb; ++b) {
+                    const BandOptics& o = m.bands[static_cast<size_t>(b)];
+                    if (b == 0 || !same_g[static_cast<size_t>(b)]) p = hg_phase(o.g, dot(lights[l].w, w_out));
+                    if (shadows && (b == 0 || !same_sigma[static_cast<size_t>(b)])) T = std::exp(-o.sigma_t * tau);
+                    J[static_cast<size_t>(b)] += band_value(lights[l].E0, b) * T * p;  // E0 T p(mu)
+                }
+            }
+            for (int b = 0; b < nb; ++b) {
+                const BandOptics& o = m.bands[static_cast<size_t>(b)];
+                const size_t bb = static_cast<size_t>(b);
+                if (diffuse) {
+                    Vec3 F;
+                    if (flux) {
+                        const Field<double>& f = in.diffuse.flux[bb];
+                        F = {f(i, j, k, 0), f(i, j, k, 1), f(i, j, k, 2)};
+                    }
+                    J[bb] += diffuse_inscatter(in.diffuse.fluence[bb](i, j, k), o.g, flux, F, w_out);
+                }
+                J[bb] *= rho * o.sigma_t * o.albedo;
+            }
+        }
+        for (int b = 0; b < nb; ++b) cell[1 + b] = static_cast<float>(J[static_cast<size_t>(b)]);
+    });
+    build_occupancy(v);
+    return v;
+}
+
+}  // namespace nimbus

@@ -1,0 +1,47 @@
+// ViewVolume: what one rank's ray march reads. For a pinhole camera the view direction at a
+// point x is fixed, d(x) = normalize(x - camera), so the view source J_b (source_kernel.h) is
+// evaluated ONCE per cell centre before marching; the march then only interpolates rho and
+// J_b trilinearly (Max 1995 §1: reconstruction between samples).
+//
+// Layout: float, owned box + 1 ghost layer (the ghosts come from the exchanged inputs), the
+// 1 + nbands values of a cell interleaved [rho, J_0, ..., J_{nb-1}] so one trilinear lookup
+// touches 8 short runs of memory. Occupancy: the owned box split into 8³-cell blocks; a block
+// is empty when rho = 0 on all of its cells and a 1-cell apron, so any trilinear sample whose
+// nearest cell lies in the block reads only zeros (J = 0 wherever rho = 0) and can be skipped;
+// the bounding box of the occupied blocks lets a ray skip the empty margins in one step.
+// Not collective; no MPI.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "src/core/decomposition.h"
+#include "src/core/field.h"
+#include "src/core/grid.h"
+#include "src/render/raycaster.h"
+
+namespace nimbus {
+
+struct ViewVolume {
+    static constexpr int kBlockShift = 3;  // 8³-cell occupancy blocks
+    Grid grid;
+    Box owned;
+    int nbands = 1;
+    std::vector<double> sigma_t;          // per band, 1/m per unit density
+    Field<float> data;                    // [rho, J_0..J_{nb-1}] on owned + 1 ghost
+    Int3 nblocks{0, 0, 0};
+    std::vector<std::uint8_t> occupied;   // nblocks x-fastest; 1 = may hold density
+    Box occupied_cells;                   // bounding box of the occupied blocks' cells (may be empty)
+
+    int block_index(int i, int j, int k) const {
+        return (((k - owned.lo[2]) >> kBlockShift) * nblocks[1] +
+                ((j - owned.lo[1]) >> kBlockShift)) * nblocks[0] + ((i - owned.lo[0]) >> kBlockShift);
+    }
+};
+
+// Builds the view volume for in.scene.render.mode seen from `camera` (world position, metres).
+// Expects in.medium.rho, in.light.tau_rho (scattering) and in.diffuse fields on d.local() with
+// at least 1 ghost layer; throws Error otherwise. Not collective (the caller makes errors so).
+ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, const Vec3& camera);
+
+}  // namespace nimbus

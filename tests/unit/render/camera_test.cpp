@@ -1,0 +1,107 @@
+// Camera: the central pixel looks at look_at, up in the world is up in the image (row 0 is
+// the top), right is right, the vertical field of view spans the image height, and domain
+// units map through the grid's origin and extent; project() inverts direction().
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "src/core/error.h"
+#include "src/render/camera.h"
+
+namespace nimbus {
+namespace {
+
+double angle(const Vec3& a, const Vec3& b) {
+    return std::acos(std::clamp(dot(normalized(a), normalized(b)), -1.0, 1.0));
+}
+
+Grid test_grid() {
+    Grid g;
+    g.n = {20, 10, 40};
+    g.h = 0.5;
+    g.origin = {1.0, -2.0, 3.0};
+    return g;  // extent 10 x 5 x 20 m
+}
+
+CameraSpec oblique_spec() {
+    CameraSpec c;
+    c.position = {0.9, -0.8, 0.7};
+    c.look_at = {0.4, 0.5, 0.3};
+    c.up = {0, 0, 1};
+    c.fov_deg = 35;
+    c.width = 33;
+    c.height = 25;
+    return c;
+}
+
+TEST(Camera, DomainUnitsMapThroughOriginAndExtent) {
+    const Camera cam(oblique_spec(), test_grid());
+    EXPECT_NEAR(cam.position().x, 1.0 + 0.9 * 10, 1e-12);
+    EXPECT_NEAR(cam.position().y, -2.0 - 0.8 * 5, 1e-12);
+    EXPECT_NEAR(cam.position().z, 3.0 + 0.7 * 20, 1e-12);
+    CameraSpec metres = oblique_spec();
+    metres.domain_units = false;
+    metres.position = {4, 5, 6};
+    const Camera m(metres, test_grid());
+    EXPECT_EQ(m.position().x, 4.0);
+    EXPECT_EQ(m.position().z, 6.0);
+    EXPECT_EQ(m.look_at().y, 0.5);
+}
+
+TEST(Camera, CentralPixelLooksAtLookAt) {
+    const Camera cam(oblique_spec(), test_grid());
+    const Vec3 want = normalized(cam.look_at() - cam.position());
+    const Vec3 got = cam.pixel_direction(16, 12);  // the centre of a 33 x 25 image
+    EXPECT_LT(norm(got - want), 1e-12);
+    EXPECT_NEAR(norm(got), 1.0, 1e-14);
+}
+
+TEST(Camera, UpIsUpAndRightIsRight) {
+    const CameraSpec spec = oblique_spec();
+    const Camera cam(spec, test_grid());
+    const Vec3 top = cam.pixel_direction(16, 0), bottom = cam.pixel_direction(16, 24);
+    EXPECT_GT(dot(top, spec.up), dot(bottom, spec.up) + 0.1);  // row 0 looks higher
+    const Vec3 world_right = cross(cam.forward(), spec.up);
+    EXPECT_GT(dot(cam.pixel_direction(32, 12), world_right), 0.1);
+    EXPECT_LT(dot(cam.pixel_direction(0, 12), world_right), -0.1);
+    // A point above look_at (world up) projects into the upper half of the image: the ray
+    // toward it is closer to the top-centre pixel's ray than to the bottom-centre one's.
+    const Vec3 above = normalized(cam.look_at() + Vec3{0, 0, 1.0} - cam.position());
+    EXPECT_LT(angle(above, top), angle(above, bottom));
+}
+
+TEST(Camera, FieldOfViewSpansTheImage) {
+    const CameraSpec spec = oblique_spec();
+    const Camera cam(spec, test_grid());
+    const double vertical = angle(cam.direction(16.5, 0.0), cam.direction(16.5, 25.0));
+    EXPECT_NEAR(vertical, spec.fov_deg * std::numbers::pi / 180, 1e-12);
+    const double half_h = std::tan(0.5 * spec.fov_deg * std::numbers::pi / 180);
+    const double horizontal = angle(cam.direction(0.0, 12.5), cam.direction(33.0, 12.5));
+    EXPECT_NEAR(horizontal, 2 * std::atan(half_h * 33.0 / 25.0), 1e-12);
+}
+
+TEST(Camera, ProjectInvertsDirection) {
+    const Camera cam(oblique_spec(), test_grid());
+    for (double u : {0.0, 3.25, 16.5, 33.0})
+        for (double v : {0.0, 7.5, 25.0}) {
+            double pu, pv;
+            ASSERT_TRUE(cam.project(cam.position() + cam.direction(u, v) * 7.0, pu, pv));
+            EXPECT_NEAR(pu, u, 1e-9);
+            EXPECT_NEAR(pv, v, 1e-9);
+        }
+    double pu, pv;
+    EXPECT_FALSE(cam.project(cam.position() - cam.forward(), pu, pv));  // behind the camera
+}
+
+TEST(Camera, DegenerateViewsThrow) {
+    CameraSpec same = oblique_spec();
+    same.look_at = same.position;
+    EXPECT_THROW(Camera(same, test_grid()), Error);
+    CameraSpec parallel = oblique_spec();
+    parallel.look_at = {0.9, -0.8, 0.1};  // straight down, up = +z
+    EXPECT_THROW(Camera(parallel, test_grid()), Error);
+}
+
+}  // namespace
+}  // namespace nimbus

@@ -1,0 +1,83 @@
+// The ground background: a Lambertian plane at the domain's bottom lit by the sun,
+//   L = (albedo/π) E0 |w_z| T_sun(ground),
+// with T_sun = 1 outside the domain footprint and exp(-sigma_t tau_rho) from the bottom cell
+// layer inside it. A homogeneous absorbing layer high in the domain (cells k = 10..13 of 16)
+// shadows the whole footprint by exp(-sigma_t rho D/|w_z|); without it nothing is shadowed.
+// The camera sits below the layer looking down, so view rays that reach the ground cross
+// only empty cells (view transmittance 1); rays that miss the ground see the sky colour.
+#include <gtest/gtest.h>
+
+#include <numbers>
+
+#include "tests/support/mpi_test.h"
+#include "tests/unit/render/render_fixture.h"
+
+namespace nimbus {
+namespace {
+
+void check_ground(bool with_cloud, const Int3& proc_dims) {
+    Grid g;
+    g.n = {16, 16, 16};
+    g.h = 1.0 / 16;
+    Scene s;
+    s.bands = {BandOptics{"gray", 2.0, 0.9, 0.8}};
+    s.render.mode = RenderMode::absorption;
+    s.background.kind = BackgroundSpec::Kind::ground;
+    s.background.ground_albedo = 0.4;
+    s.background.color = {0.25};  // sky
+    s.camera.position = {0.5, -0.5, 0.3};
+    s.camera.look_at = {0.5, 0.5, 0.0};
+    s.camera.fov_deg = 70;
+    s.camera.width = 32;
+    s.camera.height = 24;
+    const int k_bot = 10, k_top = 14;
+    const double rho = with_cloud ? 1.0 : 0.0, E0 = 3.0;
+    const Vec3 w = normalized(Vec3{0.3, 0.0, -1.0});
+    auto world = test::make_world(MPI_COMM_WORLD, g, s, [&](int i, int j, int k) {
+        return test::inside_domain(g.n, i, j, k) && k >= k_bot && k < k_top ? rho : 0.0;
+    }, proc_dims);
+    // tau_rho: density times the layer's thickness above the cell centre, along -w.
+    world.light.lights = {DirectionalLight{"sun", w, {E0}}};
+    world.light.tau_rho.push_back(test::make_field(*world.d, [&](int, int, int k, int) {
+        const double zc = (k + 0.5) * g.h, lo = k_bot * g.h, hi = k_top * g.h;
+        return rho * std::clamp(hi - std::max(zc, lo), 0.0, hi - lo) / std::abs(w.z);
+    }));
+    const Image image = test::render(s, world);
+    if (test::world_rank() != 0) return;
+
+    const Camera cam(s.camera, g);
+    const double lit = 0.4 / std::numbers::pi * E0 * std::abs(w.z);
+    const double shadow = std::exp(-2.0 * rho * (k_top - k_bot) * g.h / std::abs(w.z));
+    int inside = 0, outside = 0, sky = 0;
+    for (int y = 0; y < image.height; ++y)
+        for (int x = 0; x < image.width; ++x) {
+            const Vec3 d = cam.pixel_direction(x, y);
+            const float* px = image.pixel(x, y);
+            if (d.z >= 0) {  // sky: pixels above the horizon (they may cross the layer)
+                if (!with_cloud) {
+                    EXPECT_FLOAT_EQ(px[0], 0.25f) << x << "," << y;
+                }
+                ++sky;
+                continue;
+            }
+            const double t = -cam.position().z / d.z;
+            const double gx = cam.position().x + t * d.x, gy = cam.position().y + t * d.y;
+            const bool in = gx >= 0 && gx < 1 && gy >= 0 && gy < 1;
+            const double want = lit * (in ? shadow : 1.0);
+            (in ? inside : outside)++;
+            EXPECT_TRUE(test::close_rel(px[0], want, 1e-6)) << x << "," << y << ": " << px[0] << " vs " << want;
+            EXPECT_FLOAT_EQ(px[0], px[1]);
+            EXPECT_EQ(px[3], 0.0f);  // the view ray crossed no density
+        }
+    EXPECT_GT(inside, 100);
+    EXPECT_GT(outside, 50);
+    EXPECT_GT(sky, 0);
+}
+
+TEST(RenderGround, LitGroundWithoutCloud) { check_ground(false, {0, 0, 0}); }
+TEST(RenderGround, CloudShadowsTheFootprint) { check_ground(true, {0, 0, 0}); }
+// Split along x: both ranks hold part of the bottom layer and shade their own columns.
+TEST(RenderGround, CloudShadowsTheFootprintSplitAlongX) { check_ground(true, {0, 1, 1}); }
+
+}  // namespace
+}  // namespace nimbus
