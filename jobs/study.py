@@ -1,0 +1,154 @@
+#!/usr/bin/python3
+"""Speed against error (issue 3 item 5): every model on every scene, against a Monte Carlo reference.
+
+For each scene: one long Monte Carlo reference run, then one run per model setting; each run is
+compared with `nimbus compare --json` against the reference (relative L2 and max relative error
+of fluence_diffuse over cells with density, per band; image RMSE when both runs wrote images).
+Writes study.csv, study.json and study.png (log-log wall time against relative L2 error, one
+panel per scene, one marker per model) into --out.
+
+Usage (Debian's python3 has numpy, h5py and matplotlib):
+  /usr/bin/python3 jobs/study.py --scenes scenes/default.toml \
+      --model single=single \
+      --model diffusion=diffusion \
+      --model mc-1e5=montecarlo,model.montecarlo.photons=100000 \
+      --reference-photons 10000000 --ranks 2 --out study
+A model is LABEL=NAME[,key=value,...]: NAME goes to model.name, each key=value to --set.
+--set key=value applies to every run (e.g. --set grid.n=[48,48,32] for a quick study).
+"""
+import argparse
+import csv
+import json
+import os
+import subprocess
+import sys
+import time
+
+import h5py
+
+
+def run_nimbus(args, scene, sets, out_dir):
+    """Runs `mpiexec -n R nimbus run SCENE --set ... --out DIR`; returns (wall seconds, report)."""
+    os.makedirs(out_dir, exist_ok=True)
+    cmd = ["mpiexec", "-n", str(args.ranks), "--oversubscribe", "--bind-to", "none", args.nimbus, "run", scene]
+    for s in sets:
+        cmd += ["--set", s]
+    cmd += ["--out", out_dir]
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    print("+", " ".join(cmd), flush=True)
+    start = time.monotonic()
+    with open(os.path.join(out_dir, "log.txt"), "w") as log:
+        rc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, env=env).returncode
+    wall = time.monotonic() - start
+    if rc != 0:
+        raise RuntimeError(f"nimbus run failed ({rc}); see {out_dir}/log.txt")
+    report = {}
+    with h5py.File(os.path.join(out_dir, "nimbus.h5"), "r") as f:
+        if "run" in f and "report" in f["run"].attrs:
+            raw = f["run"].attrs["report"]
+            report = json.loads(raw.decode() if isinstance(raw, bytes) else raw)
+    return wall, report
+
+
+def compare(args, run_dir, ref_dir):
+    cmd = [args.nimbus, "compare", os.path.join(run_dir, "nimbus.h5"), os.path.join(ref_dir, "nimbus.h5"), "--json"]
+    a_img, b_img = os.path.join(run_dir, "nimbus.exr"), os.path.join(ref_dir, "nimbus.exr")
+    if os.path.exists(a_img) and os.path.exists(b_img):
+        cmd += ["--image-a", a_img, "--image-b", b_img]
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    out = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    if out.returncode != 0:
+        raise RuntimeError(f"nimbus compare failed: {out.stderr.strip()}")
+    return json.loads(out.stdout)
+
+
+def parse_model(spec):
+    label, _, rest = spec.partition("=")
+    parts = rest.split(",")
+    if not label or not parts[0]:
+        raise SystemExit(f"bad --model '{spec}': expected LABEL=NAME[,key=value,...]")
+    return label, ["model.name=" + parts[0]] + [p for p in parts[1:] if p]
+
+
+def solve_seconds(report):
+    """The model's own time: the pipeline's top-level "model" phase, else the report's total."""
+    for p in report.get("phases", []):
+        if p["name"] == "model":
+            return p["seconds"]
+    return report.get("total_seconds", float("nan"))
+
+
+def plot(rows, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scenes = sorted({r["scene"] for r in rows})
+    labels = sorted({r["model"] for r in rows})
+    markers = "osD^v<>pXh*"
+    fig, axes = plt.subplots(1, len(scenes), figsize=(5 * len(scenes), 4), squeeze=False)
+    for ax, scene in zip(axes[0], scenes):
+        for i, label in enumerate(labels):
+            pts = [(r["wall_s"], r["rel_l2"]) for r in rows if r["scene"] == scene and r["model"] == label and r["rel_l2"] > 0]
+            if pts:
+                ax.loglog(*zip(*pts), markers[i % len(markers)], label=label, markersize=8)
+        ax.set_title(os.path.basename(scene))
+        ax.set_xlabel("wall time (s)")
+        ax.set_ylabel("relative L2 error of fluence_diffuse")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--scenes", nargs="+", required=True)
+    p.add_argument("--model", action="append", required=True, help="LABEL=NAME[,key=value,...] (repeatable)")
+    p.add_argument("--set", action="append", default=[], help="key=value for every run (repeatable)")
+    p.add_argument("--reference-photons", type=int, default=10_000_000)
+    p.add_argument("--reference-set", action="append", default=[], help="extra key=value for the reference")
+    p.add_argument("--ranks", type=int, default=2)
+    p.add_argument("--nimbus", default=os.path.join("build", "bin", "nimbus"))
+    p.add_argument("--out", default="study")
+    args = p.parse_args()
+    models = [parse_model(m) for m in args.model]
+    os.makedirs(args.out, exist_ok=True)
+
+    rows = []
+    for scene in args.scenes:
+        tag = os.path.splitext(os.path.basename(scene))[0]
+        ref_dir = os.path.join(args.out, tag, "reference")
+        ref_sets = args.set + ["model.name=montecarlo", f"model.montecarlo.photons={args.reference_photons}"] + args.reference_set
+        ref_wall, _ = run_nimbus(args, scene, ref_sets, ref_dir)
+        print(f"{tag}: reference done in {ref_wall:.1f} s", flush=True)
+        for label, sets in models:
+            run_dir = os.path.join(args.out, tag, label)
+            wall, report = run_nimbus(args, scene, args.set + sets, run_dir)
+            cmp = compare(args, run_dir, ref_dir)
+            bands = cmp["bands"]
+            row = {
+                "scene": scene, "model": label, "settings": " ".join(sets), "ranks": args.ranks,
+                "wall_s": wall, "solve_s": solve_seconds(report),
+                "rel_l2": sum(b["rel_l2"] for b in bands) / len(bands),
+                "max_rel": max(b["max_rel"] for b in bands),
+                "rms_z": sum(b.get("rms_z", float("nan")) for b in bands) / len(bands),
+                "image_rmse": cmp.get("image", {}).get("rmse", float("nan")),
+                "image_rel": cmp.get("image", {}).get("rel_error", float("nan")),
+                "reference_wall_s": ref_wall,
+            }
+            rows.append(row)
+            print(f"{tag} {label}: {wall:.2f} s, relative L2 {row['rel_l2']:.3e}, max {row['max_rel']:.3e}", flush=True)
+
+    with open(os.path.join(args.out, "study.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
+        w.writeheader()
+        w.writerows(rows)
+    with open(os.path.join(args.out, "study.json"), "w") as f:
+        json.dump(rows, f, indent=2)
+    plot(rows, os.path.join(args.out, "study.png"))
+    print(f"wrote {args.out}/study.csv, study.json, study.png")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

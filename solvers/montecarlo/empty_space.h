@@ -1,0 +1,16 @@
+// Empty-space distance for the Monte Carlo walk (grid_walk.h): for every cell, the chessboard
+// distance to the nearest cell with kappa > 0, where the layer just outside the domain counts
+// as non-empty (so a skipped cube never leaves the domain). 0 for non-empty cells, capped at
+// 255. Exact two-pass chamfer transform with the 26-neighbour unit mask (Rosenfeld & Pfaltz
+// 1966). Not collective; allocates the result.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+namespace nimbus::mc {
+
+std::vector<std::uint8_t> empty_space_distance(const std::array<int, 3>& n, const std::vector<float>& kappa);
+
+}  // namespace nimbus::mc

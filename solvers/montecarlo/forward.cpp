@@ -1,0 +1,355 @@
+#include "solvers/montecarlo/forward.h"
+
+#include <fmt/format.h>
+#include <mpi.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "solvers/montecarlo/empty_space.h"
+#include "solvers/montecarlo/photon.h"
+#include "src/core/error.h"
+#include "src/core/halo.h"
+#include "src/core/log.h"
+#include "src/core/progress.h"
+#include "src/core/report.h"
+
+namespace nimbus::mc {
+
+namespace {
+
+// Bands that share (sigma_t, albedo, g) are traced once.
+struct OpticsGroup {
+    BandOptics optics;
+    std::vector<int> bands;
+};
+
+std::vector<OpticsGroup> group_bands(const std::vector<BandOptics>& bands) {
+    std::vector<OpticsGroup> groups;
+    for (int b = 0; b < static_cast<int>(bands.size()); ++b) {
+        const BandOptics& o = bands[static_cast<size_t>(b)];
+        auto it = std::find_if(groups.begin(), groups.end(), [&](const OpticsGroup& g) {
+            return g.optics.sigma_t == o.sigma_t && g.optics.albedo == o.albedo && g.optics.g == o.g;
+        });
+        if (it == groups.end()) groups.push_back({o, {b}}); else it->bands.push_back(b);
+    }
+    return groups;
+}
+
+}  // namespace
+
+std::vector<double> replicate_density(const Decomposition& d, const Field<double>& rho) {
+    const Int3 n = d.global().hi;
+    const std::vector<double> mine = rho.owned_values();
+    std::vector<int> counts(static_cast<size_t>(d.size())), displs(static_cast<size_t>(d.size()));
+    for (int r = 0; r < d.size(); ++r) counts[static_cast<size_t>(r)] = static_cast<int>(d.box_of(r).cells());
+    std::exclusive_scan(counts.begin(), counts.end(), displs.begin(), 0);
+    std::vector<double> gathered(static_cast<size_t>(d.global().cells()));
+    MPI_Allgatherv(mine.data(), static_cast<int>(mine.size()), MPI_DOUBLE, gathered.data(),
+                   counts.data(), displs.data(), MPI_DOUBLE, d.comm());
+    std::vector<double> global(gathered.size());
+    for (int r = 0; r < d.size(); ++r) {
+        const Box b = d.box_of(r);
+        size_t pos = static_cast<size_t>(displs[static_cast<size_t>(r)]);
+        for_each_cell(b, [&](int i, int j, int k) {
+            global[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] = gathered[pos++];
+        });
+    }
+    return global;
+}
+
+
+std::vector<std::int64_t> photons_per_light(const std::vector<double>& power, std::int64_t total,
+                                            int batches) {
+    const double sum = std::accumulate(power.begin(), power.end(), 0.0);
+    std::vector<std::int64_t> n(power.size(), 0);
+    if (sum <= 0) return n;
+    for (size_t l = 0; l < power.size(); ++l)
+        if (power[l] > 0)
+            n[l] = std::max<std::int64_t>(batches, std::llround(static_cast<double>(total) * power[l] / sum));
+    return n;
+}
+
+ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
+                            const std::vector<DirectionalLight>& lights,
+                            const MonteCarloOptions& opt, const ForwardSettings& settings) {
+    opt.validate();
+    const double t_start = wall_time();
+    const Int3 n = d.global().hi;
+    const std::int64_t cells = d.global().cells();
+    const int nb = medium.nbands();
+    const int B = opt.batches;
+    const double h = medium.grid.h;
+    const std::vector<OpticsGroup> groups = group_bands(medium.bands);
+    const int nq = settings.tally_reduced ? 4 : 2;  // per band: sum, sumsq (+ reduced sum, sumsq)
+    for (const OpticsGroup& g : groups)
+        if (g.bands.size() > 64) throw Error("Monte Carlo supports at most 64 bands with equal optics");
+
+    // Memory of the replicated arrays, per rank: density (gathered + global), kappa and the
+    // empty-space distance per group,
+    // per band the batch tally and its running sum and sum of squares, and the reduce buffer.
+    const double bytes = static_cast<double>(cells) *
+                         (16.0 + 5.0 * static_cast<double>(groups.size()) + 8.0 * nb * (nq / 2) * 3 + 8.0 * nb * nq + 12.0);
+    ForwardResult res;
+    res.replicated_gb = bytes / 1e9;
+    if (res.replicated_gb > opt.max_replicated_memory_gb)
+        throw Error(fmt::format(
+            "Monte Carlo replicates the {}x{}x{} grid on every rank: {:.2f} GB per rank exceeds "
+            "model.montecarlo.max_replicated_memory_gb = {:.2f}; raise that limit, run fewer ranks "
+            "per node, or use a coarser grid",
+            n[0], n[1], n[2], res.replicated_gb, opt.max_replicated_memory_gb));
+
+    const std::vector<double> rho = replicate_density(d, medium.rho);
+    std::array<bool, 3> periodic{d.periodic(0), d.periodic(1), d.periodic(2)};
+
+    // Bounding box of the non-empty cells (the whole extent along periodic axes).
+    Int3 box_lo = n, box_hi{0, 0, 0};
+    for_each_cell(d.global(), [&](int i, int j, int k) {
+        if (rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] > 0) {
+            const Int3 c{i, j, k};
+            for (int a = 0; a < 3; ++a) box_lo[a] = std::min(box_lo[a], c[a]), box_hi[a] = std::max(box_hi[a], c[a] + 1);
+        }
+    });
+    for (int a = 0; a < 3; ++a)
+        if (periodic[a] || box_hi[a] <= box_lo[a]) box_lo[a] = 0, box_hi[a] = periodic[a] ? n[a] : 0;
+
+    // Light terms: entry faces, projected area (m²) of the domain and of the box, photon counts.
+    std::vector<EntrySampler> entry;
+    std::vector<double> area, domain_area, power;
+    for (const DirectionalLight& L : lights) {
+        domain_area.push_back(EntrySampler({0, 0, 0}, n, periodic, L.w).projected_area * h * h);
+        entry.emplace_back(box_lo, box_hi, periodic, L.w);
+        area.push_back(entry.back().projected_area * h * h);
+        double p = 0.0;
+        for (int b = 0; b < nb; ++b) p += L.E0[static_cast<size_t>(b)] * area.back();
+        power.push_back(p);
+    }
+    const std::vector<std::int64_t> n_light = photons_per_light(power, opt.photons, B);
+    const size_t nl = lights.size();
+
+    // Per-rank accumulators over the global grid: [cell][band] sum and sum of squares of the
+    // batch estimates (and of the reduced tally).
+    std::vector<double> sum(static_cast<size_t>(cells * nb), 0.0), sumsq(sum.size(), 0.0);
+    std::vector<double> rsum, rsumsq;
+    if (settings.tally_reduced) rsum.assign(sum.size(), 0.0), rsumsq.assign(sum.size(), 0.0);
+    std::vector<Counters> batch_counters(static_cast<size_t>(B) * nb, Counters{});  // [batch][band]
+    std::int64_t my_photons = 0, my_collisions = 0;
+
+    std::vector<std::vector<float>> kappa(groups.size());
+    std::vector<std::vector<std::uint8_t>> skip(groups.size());
+    for (size_t gi = 0; gi < groups.size(); ++gi) {
+        kappa[gi].resize(static_cast<size_t>(cells));
+        for (std::int64_t c = 0; c < cells; ++c)
+            kappa[gi][static_cast<size_t>(c)] = static_cast<float>(rho[static_cast<size_t>(c)] * groups[gi].optics.sigma_t * h);
+        skip[gi] = empty_space_distance(n, kappa[gi]);
+    }
+    // Batch tallies, [cell][band in group], reused across batches: only the cells a batch
+    // touched (listed via a stamp per cell) are folded into the sums and zeroed again, so a
+    // batch costs O(cells touched), not O(grid).
+    size_t max_group = 1;
+    for (const OpticsGroup& G : groups) max_group = std::max(max_group, G.bands.size());
+    std::vector<double> tally(static_cast<size_t>(cells) * max_group, 0.0), rtally;
+    if (settings.tally_reduced) rtally.assign(tally.size(), 0.0);
+    std::vector<std::uint32_t> stamp(static_cast<size_t>(cells), 0u);
+    std::vector<std::int64_t> touched;
+    touched.reserve(static_cast<size_t>(std::min<std::int64_t>(cells, 1 << 20)));
+    std::uint32_t current = 0;
+
+    auto run_batch = [&](int batch) {
+        for (size_t gi = 0; gi < groups.size(); ++gi) {
+            const OpticsGroup& G = groups[gi];
+            const int nbg = static_cast<int>(G.bands.size());
+            ++current;
+            touched.clear();
+            const GridView grid{n, periodic, kappa[gi].data(), skip[gi].data()};
+            const PhotonOptics po{G.optics.albedo, G.optics.g, opt.roulette_weight};
+            for (size_t l = 0; l < nl; ++l) {
+                if (n_light[l] == 0) continue;
+                const std::int64_t lo = batch * n_light[l] / B, hi = (batch + 1) * n_light[l] / B;
+                if (hi <= lo) continue;
+                // Photon power per band (W) in this batch's estimate, and the fluence scale
+                // P len(m) / V = P len(cells) / h².
+                double P[64], scale[64];
+                for (int q = 0; q < nbg; ++q) {
+                    P[q] = lights[l].E0[static_cast<size_t>(G.bands[static_cast<size_t>(q)])] * area[l] /
+                           static_cast<double>(hi - lo);
+                    scale[q] = P[q] / (h * h);
+                }
+                PathTally pt;
+                double* t = tally.data();
+                double* rt = rtally.data();
+                auto touch = [&](std::int64_t idx) {
+                    if (stamp[static_cast<size_t>(idx)] != current) {
+                        stamp[static_cast<size_t>(idx)] = current;
+                        touched.push_back(idx);
+                    }
+                };
+                auto diffuse = [&](std::int64_t idx, double wl) {
+                    touch(idx);
+                    double* c = t + idx * nbg;
+                    for (int q = 0; q < nbg; ++q) c[q] += wl * scale[q];
+                };
+                for (std::int64_t p = lo; p < hi; ++p) {
+                    PathRng rng(opt.seed, static_cast<std::uint32_t>(l), static_cast<std::uint64_t>(p));
+                    PathState s;
+                    s.d = lights[l].w;
+                    entry[l].sample(rng, s);
+                    if (settings.tally_reduced) {
+                        trace_photon(grid, po, rng, s, pt, diffuse, [&](std::int64_t idx, double len) {
+                            touch(idx);
+                            double* c = rt + idx * nbg;
+                            for (int q = 0; q < nbg; ++q) c[q] += len * scale[q];
+                        });
+                    } else {
+                        trace_photon(grid, po, rng, s, pt, diffuse, [](std::int64_t, double) {});
+                    }
+                }
+                my_photons += hi - lo;
+                my_collisions += pt.collisions;
+                for (int q = 0; q < nbg; ++q) {
+                    Counters& c = batch_counters[static_cast<size_t>(batch) * nb + G.bands[static_cast<size_t>(q)]];
+                    const double E0 = lights[l].E0[static_cast<size_t>(G.bands[static_cast<size_t>(q)])];
+                    c[incident] += E0 * domain_area[l];
+                    c[escaped_direct] += E0 * (domain_area[l] - area[l]);  // rays missing the box
+                    c[absorbed] += P[q] * pt.absorbed;
+                    c[escaped_direct] += P[q] * pt.escaped_direct;
+                    for (int f = 0; f < 6; ++f) c[escaped_xlo + f] += P[q] * pt.escaped_diffuse[f];
+                    c[roulette_net] += P[q] * pt.roulette_net;
+                    c[diffuse_volume] += P[q] * pt.diffuse_track * h;
+                }
+            }
+            for (const std::int64_t c : touched)
+                for (int q = 0; q < nbg; ++q) {
+                    const size_t dst = static_cast<size_t>(c * nb + G.bands[static_cast<size_t>(q)]);
+                    const size_t src = static_cast<size_t>(c * nbg + q);
+                    const double v = tally[src];
+                    sum[dst] += v;
+                    sumsq[dst] += v * v;
+                    tally[src] = 0.0;
+                    if (settings.tally_reduced) {
+                        const double r = rtally[src];
+                        rsum[dst] += r;
+                        rsumsq[dst] += r * r;
+                        rtally[src] = 0.0;
+                    }
+                }
+        }
+    };
+
+    // Rounds of batches; stop criteria decided on rank 0 and broadcast.
+    const int P = d.size();
+    const int round_size = std::max(2, P);
+    const bool any_light = std::any_of(n_light.begin(), n_light.end(), [](std::int64_t v) { return v > 0; });
+    Progress progress("montecarlo", B, d.rank() == 0);
+    std::vector<Counters> all_counters(batch_counters.size(), Counters{});
+    int done = 0;
+    res.stop_reason = any_light ? "photons" : "no light";
+    while (any_light && done < B) {
+        const int r0 = done, r1 = std::min(B, done + round_size), cnt = r1 - r0;
+        for (int b = r0 + d.rank() * cnt / P; b < r0 + (d.rank() + 1) * cnt / P; ++b) run_batch(b);
+        MPI_Allreduce(batch_counters[static_cast<size_t>(r0) * nb].data(),
+                      all_counters[static_cast<size_t>(r0) * nb].data(), cnt * nb * ncounters,
+                      MPI_DOUBLE, MPI_SUM, d.comm());
+        done = r1;
+        progress.update(done);
+        // Relative standard error of the total diffuse power over the completed batches.
+        double m = 0.0, m2 = 0.0;
+        for (int b = 0; b < done; ++b) {
+            double v = 0.0;
+            for (int q = 0; q < nb; ++q) v += all_counters[static_cast<size_t>(b) * nb + q][diffuse_volume];
+            m += v;
+            m2 += v * v;
+        }
+        m /= done;
+        const double var = std::max(0.0, m2 / done - m * m) * done / std::max(1, done - 1);
+        res.rel_error = m > 0 ? std::sqrt(var / done) / m : 0.0;
+        int stop = 0;
+        if (d.rank() == 0 && done < B) {
+            const double elapsed = wall_time() - t_start;
+            const double per_round = elapsed / ((done + round_size - 1) / round_size);
+            if (opt.time_budget > 0 && elapsed + per_round > opt.time_budget) stop = 1;
+            if (opt.target_rel_error > 0 && done >= 2 && m > 0 && res.rel_error < opt.target_rel_error) stop = 2;
+        }
+        MPI_Bcast(&stop, 1, MPI_INT, 0, d.comm());
+        if (stop == 1) res.stop_reason = "time_budget";
+        if (stop == 2) res.stop_reason = "target_rel_error";
+        if (stop) break;
+    }
+    progress.finish();
+    res.batches = done;
+    std::int64_t counts[2] = {my_photons, my_collisions}, total[2] = {0, 0};
+    MPI_Allreduce(counts, total, 2, MPI_INT64_T, MPI_SUM, d.comm());
+    res.photons = total[0];
+    res.collisions = total[1];
+
+    // Counters: mean and standard error of the batch estimates.
+    res.counters.assign(static_cast<size_t>(nb), Counters{});
+    res.counters_stderr.assign(static_cast<size_t>(nb), Counters{});
+    const double K = std::max(1, done);
+    for (int q = 0; q < nb; ++q)
+        for (int c = 0; c < ncounters; ++c) {
+            double m = 0.0, m2 = 0.0;
+            for (int b = 0; b < done; ++b) {
+                const double v = all_counters[static_cast<size_t>(b) * nb + q][c];
+                m += v;
+                m2 += v * v;
+            }
+            m /= K;
+            res.counters[static_cast<size_t>(q)][c] = m;
+            res.counters_stderr[static_cast<size_t>(q)][c] =
+                done > 1 ? std::sqrt(std::max(0.0, m2 / K - m * m) / (K - 1)) : 0.0;
+        }
+
+    // Reduce the per-cell sums to the owners of each box: pack by destination rank.
+    std::vector<int> recv_counts(static_cast<size_t>(P));
+    for (int r = 0; r < P; ++r) recv_counts[static_cast<size_t>(r)] = static_cast<int>(d.box_of(r).cells() * nb * nq);
+    std::vector<double> send;
+    send.reserve(static_cast<size_t>(cells * nb * nq));
+    for (int r = 0; r < P; ++r)
+        for_each_cell(d.box_of(r), [&](int i, int j, int k) {
+            const size_t c = ((static_cast<size_t>(k) * n[1] + j) * n[0] + i) * nb;
+            for (int q = 0; q < nb; ++q) {
+                send.push_back(sum[c + q]);
+                send.push_back(sumsq[c + q]);
+                if (settings.tally_reduced) {
+                    send.push_back(rsum[c + q]);
+                    send.push_back(rsumsq[c + q]);
+                }
+            }
+        });
+    std::vector<double> recv(static_cast<size_t>(recv_counts[static_cast<size_t>(d.rank())]));
+    MPI_Reduce_scatter(send.data(), recv.data(), recv_counts.data(), MPI_DOUBLE, MPI_SUM, d.comm());
+
+    auto mean_and_stderr = [&](double s, double s2, double& mean, double& se) {
+        mean = s / K;
+        se = done > 1 ? std::sqrt(std::max(0.0, s2 / K - mean * mean) / (K - 1)) : 0.0;
+    };
+    for (int q = 0; q < nb; ++q) {
+        res.fluence.emplace_back(d.local(), 1, 1, 0.0);
+        res.fluence_stderr.emplace_back(d.local(), 1, 1, 0.0);
+        if (settings.tally_reduced) {
+            res.reduced.emplace_back(d.local(), 1, 1, 0.0);
+            res.reduced_stderr.emplace_back(d.local(), 1, 1, 0.0);
+        }
+    }
+    size_t pos = 0;
+    for_each_cell(d.local(), [&](int i, int j, int k) {
+        for (int q = 0; q < nb; ++q) {
+            mean_and_stderr(recv[pos], recv[pos + 1], res.fluence[static_cast<size_t>(q)](i, j, k),
+                            res.fluence_stderr[static_cast<size_t>(q)](i, j, k));
+            pos += 2;
+            if (settings.tally_reduced) {
+                mean_and_stderr(recv[pos], recv[pos + 1], res.reduced[static_cast<size_t>(q)](i, j, k),
+                                res.reduced_stderr[static_cast<size_t>(q)](i, j, k));
+                pos += 2;
+            }
+        }
+    });
+    for (auto* v : {&res.fluence, &res.fluence_stderr, &res.reduced, &res.reduced_stderr})
+        for (Field<double>& f : *v) exchange_halo(f, d);
+    res.seconds = wall_time() - t_start;
+    return res;
+}
+
+}  // namespace nimbus::mc

@@ -1,0 +1,78 @@
+// Forward light tracing driver (issue 3): photons from every light term, batches of photon
+// index ranges spread over the ranks, per-cell batch-means statistics, energy bookkeeping.
+//
+// Parallel layout: the density grid is replicated on every rank (MPI_Allgatherv of the owned
+// boxes); batch b of light l is the photon index range [b N_l / B, (b+1) N_l / B); every photon
+// draws from a Philox stream keyed by (seed, light, photon index), so the same seed gives the
+// same result for any rank count (up to the round-off of the final sums). Batches run in
+// rounds; a round's batches go to the ranks in contiguous blocks; between rounds the stop
+// criteria (photon count, time budget, target relative error of the total diffuse power) are
+// decided collectively. Tallies are reduced to the owner of each box (MPI_Reduce_scatter).
+//
+// Each batch is a full estimate (its photons carry power E0 A_projected / n_batch); the result
+// is the mean over the completed batches and the standard error is that of the batch means.
+// Bands sharing (sigma_t, albedo, g) are traced once; the tally carries one value per band.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "src/core/decomposition.h"
+#include "src/core/field.h"
+#include "src/model/options.h"
+#include "src/physics/lights.h"
+#include "src/scene/medium.h"
+
+namespace nimbus::mc {
+
+// Energy bookkeeping per band, in watts (power through/into the whole domain).
+enum Counter : int {
+    incident = 0,     // E0 A_projected summed over lights
+    absorbed,         // deposited by implicit capture
+    escaped_direct,   // left without scattering (the transmitted direct beam)
+    escaped_xlo, escaped_xhi, escaped_ylo, escaped_yhi, escaped_zlo, escaped_zhi,  // scattered light out
+    roulette_net,     // weight created minus destroyed by Russian roulette (zero on average)
+    diffuse_volume,   // ∫ fluence_diffuse dV (W m): the quantity of the target error
+    ncounters
+};
+using Counters = std::array<double, ncounters>;
+
+struct ForwardSettings {
+    bool tally_reduced = false;  // also tally the unscattered fluence (verification only)
+};
+
+struct ForwardResult {
+    // Per band, on the rank's owned box + 1 ghost (halo-exchanged), W/m².
+    std::vector<Field<double>> fluence, fluence_stderr;
+    std::vector<Field<double>> reduced, reduced_stderr;  // only with tally_reduced
+    // Per band, over the whole domain (same on every rank): batch mean and its standard error.
+    std::vector<Counters> counters, counters_stderr;
+    std::int64_t photons = 0, collisions = 0;  // totals over all ranks
+    int batches = 0;                           // batches completed
+    double seconds = 0.0;                      // wall time of the tracing rounds
+    double replicated_gb = 0.0;                // per-rank memory of the replicated arrays
+    double rel_error = 0.0;                    // relative standard error of diffuse_volume (all bands)
+    std::string stop_reason;                   // "photons", "time_budget", "target_rel_error"
+};
+
+// Collective over d.comm(). medium.rho must hold the owned box; lights as from make_lights.
+// Periodic axes are taken from d.periodic() (photons enter only through non-periodic faces).
+// Throws Error (on every rank) if the replicated arrays would exceed
+// opt.max_replicated_memory_gb. Lights that cannot enter (e.g. horizontal in a periodic slab)
+// carry no photons; with none left the result is zero with stop_reason "no light".
+ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
+                            const std::vector<DirectionalLight>& lights,
+                            const MonteCarloOptions& opt, const ForwardSettings& settings = {});
+
+// Collective over d.comm(): the global density (x fastest) on every rank, gathered from the
+// owned boxes with MPI_Allgatherv.
+std::vector<double> replicate_density(const Decomposition& d, const Field<double>& rho);
+
+// Photon count of each light: proportional to its power summed over bands (E0 A_projected),
+// at least opt.batches per light that carries power. Same on every rank.
+std::vector<std::int64_t> photons_per_light(const std::vector<double>& power, std::int64_t total,
+                                            int batches);
+
+}  // namespace nimbus::mc

@@ -1,0 +1,92 @@
+#include "solvers/montecarlo/montecarlo.h"
+
+#include "solvers/montecarlo/forward.h"
+#include "solvers/montecarlo/path_tracer.h"
+#include "src/core/log.h"
+#include "src/core/report.h"
+
+namespace nimbus {
+
+namespace {
+
+class MonteCarloModel final : public ScatteringModel {
+public:
+    explicit MonteCarloModel(const MonteCarloOptions& opt) : opt_(opt) { opt_.validate(); }
+
+    std::string name() const override { return "montecarlo"; }
+
+    nlohmann::json options() const override {
+        return {{"photons", opt_.photons},
+                {"time_budget", opt_.time_budget},
+                {"target_rel_error", opt_.target_rel_error},
+                {"seed", opt_.seed},
+                {"batches", opt_.batches},
+                {"roulette_weight", opt_.roulette_weight},
+                {"max_replicated_memory_gb", opt_.max_replicated_memory_gb},
+                {"image", opt_.image},
+                {"samples_per_pixel", opt_.samples_per_pixel}};
+    }
+
+    void solve(const SolveContext& ctx, DiffuseSolution& out) override {
+        mc::ForwardResult r;
+        {
+            ScopedTimer timer(ctx.report, "montecarlo/trace");
+            r = mc::trace_forward(ctx.decomp, ctx.medium, ctx.light.lights, opt_);
+        }
+        out.fluence = std::move(r.fluence);
+        out.fluence_stderr = std::move(r.fluence_stderr);
+        out.flux.clear();
+
+        const double cores = ctx.decomp.size();
+        const double secs = std::max(r.seconds, 1e-9);
+        const double paths_per_s = static_cast<double>(r.photons) / secs / cores;
+        const double coll_per_s = static_cast<double>(r.collisions) / secs / cores;
+        nlohmann::json energy = nlohmann::json::array();
+        for (size_t b = 0; b < r.counters.size(); ++b) {
+            const mc::Counters& c = r.counters[b];
+            double escaped = c[mc::escaped_direct];
+            for (int f = 0; f < 6; ++f) escaped += c[mc::escaped_xlo + f];
+            energy.push_back({{"band", ctx.medium.bands[b].name},
+                              {"incident_W", c[mc::incident]},
+                              {"absorbed_W", c[mc::absorbed]},
+                              {"escaped_W", escaped},
+                              {"reflected_diffuse_W", c[mc::escaped_zhi]},
+                              {"transmitted_diffuse_W", c[mc::escaped_zlo]},
+                              {"transmitted_direct_W", c[mc::escaped_direct]}});
+        }
+        ctx.report.values()["montecarlo"] = {
+            {"photons", r.photons},
+            {"collisions", r.collisions},
+            {"batches", r.batches},
+            {"stop_reason", r.stop_reason},
+            {"seconds", r.seconds},
+            {"paths_per_s_per_core", paths_per_s},
+            {"collisions_per_s_per_core", coll_per_s},
+            {"rel_error_total_diffuse", r.rel_error},
+            {"replicated_memory_gb", r.replicated_gb},
+            {"energy", energy}};
+        log::info("montecarlo: {} photons, {} collisions in {:.2f} s ({} batches, stop: {})", r.photons,
+                  r.collisions, r.seconds, r.batches, r.stop_reason);
+        log::info("montecarlo: {:.3g} paths/s/core, {:.3g} collisions/s/core, relative error of the "
+                  "total diffuse power {:.2e}, replicated grid {:.3f} GB per rank",
+                  paths_per_s, coll_per_s, r.rel_error, r.replicated_gb);
+    }
+
+    bool renders_image() const override { return opt_.image; }
+
+    Image render(const SolveContext& ctx) override {
+        ScopedTimer timer(ctx.report, "montecarlo/render");
+        return mc::path_trace_image(ctx, opt_);
+    }
+
+private:
+    MonteCarloOptions opt_;
+};
+
+}  // namespace
+
+std::unique_ptr<ScatteringModel> make_montecarlo_model(const MonteCarloOptions& opt) {
+    return std::make_unique<MonteCarloModel>(opt);
+}
+
+}  // namespace nimbus

@@ -1,0 +1,158 @@
+#include "solvers/montecarlo/path_tracer.h"
+
+#include <mpi.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "solvers/montecarlo/empty_space.h"
+#include "solvers/montecarlo/forward.h"
+#include "solvers/montecarlo/grid_walk.h"
+#include "solvers/montecarlo/philox.h"
+#include "src/core/log.h"
+#include "src/core/progress.h"
+#include "src/physics/phase.h"
+#include "src/render/camera.h"
+
+namespace nimbus::mc {
+
+namespace {
+
+// Optical depth from s along s.d to the domain boundary (s is moved; pass a copy).
+double optical_depth(const GridView& g, PathState s) {
+    double tau = 0.0;
+    walk_optical_depth(g, s, std::numeric_limits<double>::infinity(),
+                       [&](std::int64_t idx, double len) { tau += g.kappa[idx] * len; });
+    return tau;
+}
+
+// Where the world ray x + t d first meets the domain box (grid units); false if it misses.
+bool enter_domain(const Grid& grid, const Vec3& x, const Vec3& d, PathState& s) {
+    double t0 = 0.0, t1 = std::numeric_limits<double>::infinity();
+    const Vec3 lo = grid.origin, hi = grid.upper();
+    for (int a = 0; a < 3; ++a) {
+        if (d[a] == 0.0) {
+            if (x[a] < lo[a] || x[a] > hi[a]) return false;
+            continue;
+        }
+        double ta = (lo[a] - x[a]) / d[a], tb = (hi[a] - x[a]) / d[a];
+        if (ta > tb) std::swap(ta, tb);
+        t0 = std::max(t0, ta);
+        t1 = std::min(t1, tb);
+    }
+    if (t0 >= t1) return false;
+    const Vec3 p = x + d * t0;
+    for (int a = 0; a < 3; ++a) {
+        const double u = std::clamp((p[a] - lo[a]) / grid.h, 0.0, static_cast<double>(grid.n[a]));
+        s.cell[a] = std::min(static_cast<int>(u), grid.n[a] - 1);
+        s.frac[a] = std::clamp(u - s.cell[a], 0.0, 1.0);
+    }
+    s.d = d;
+    return true;
+}
+
+}  // namespace
+
+Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
+    const Decomposition& d = ctx.decomp;
+    const Medium& m = ctx.medium;
+    const Scene& scene = ctx.scene;
+    const Camera cam(scene.camera, m.grid);
+    const int W = cam.width(), H = cam.height(), spp = opt.samples_per_pixel, nb = m.nbands();
+    const std::vector<DirectionalLight>& lights = ctx.light.lights;
+    const Int3 n = m.grid.n;
+    const std::array<bool, 3> periodic{d.periodic(0), d.periodic(1), d.periodic(2)};
+    const bool ground = scene.background.kind == BackgroundSpec::Kind::ground;
+    if (ground && d.rank() == 0) log::warn("montecarlo image: background 'ground' is not modelled, rendered black");
+
+    const std::vector<double> rho = replicate_density(d, m.rho);
+    std::vector<std::vector<float>> kappa(static_cast<size_t>(nb));
+    std::vector<std::vector<std::uint8_t>> skip(static_cast<size_t>(nb));
+    for (int b = 0; b < nb; ++b) {
+        auto& k = kappa[static_cast<size_t>(b)];
+        k.resize(rho.size());
+        for (size_t c = 0; c < rho.size(); ++c) k[c] = static_cast<float>(rho[c] * m.bands[static_cast<size_t>(b)].sigma_t * m.grid.h);
+        skip[static_cast<size_t>(b)] = empty_space_distance(n, k);
+    }
+
+    // Per pixel and band: sum and sum of squares of the sample radiance; per pixel: alpha.
+    const std::int64_t pixels = static_cast<std::int64_t>(W) * H, total = pixels * spp;
+    std::vector<double> acc(static_cast<size_t>(pixels) * nb * 2 + static_cast<size_t>(pixels), 0.0);
+    double* alpha = acc.data() + static_cast<size_t>(pixels) * nb * 2;
+    const std::int64_t s0 = total * d.rank() / d.size(), s1 = total * (d.rank() + 1) / d.size();
+    Progress progress("montecarlo image", static_cast<double>(s1 - s0), d.rank() == 0);
+    std::int64_t last_pixel = -1;
+    for (std::int64_t si = s0; si < s1; ++si) {
+        const std::int64_t pix = si / spp;
+        const int px = static_cast<int>(pix % W), py = static_cast<int>(pix / W);
+        if (pix != last_pixel && si % spp == 0) {
+            // alpha once per pixel, on the rank that owns its first sample
+            PathState s;
+            const double T = enter_domain(m.grid, cam.position(), cam.pixel_direction(px, py), s)
+                                 ? std::exp(-optical_depth({n, periodic, kappa[0].data(), skip[0].data()}, s))
+                                 : 1.0;
+            alpha[pix] = 1.0 - T;
+        }
+        last_pixel = pix;
+        for (int b = 0; b < nb; ++b) {
+            PathRng rng(opt.seed, 0x80000000u + static_cast<std::uint32_t>(b), static_cast<std::uint64_t>(si));
+            const GridView g{n, periodic, kappa[static_cast<size_t>(b)].data(), skip[static_cast<size_t>(b)].data()};
+            const BandOptics& o = m.bands[static_cast<size_t>(b)];
+            const Vec3 dir = cam.direction(px + rng.uniform(), py + rng.uniform());
+            double L = 0.0;
+            PathState s;
+            if (!enter_domain(m.grid, cam.position(), dir, s)) {
+                L = ground ? 0.0 : band_value(scene.background.color, b);
+            } else {
+                double beta = 1.0;
+                bool scattered = false;
+                for (;;) {
+                    const int face = walk_optical_depth(g, s, -std::log(rng.uniform()), [](std::int64_t, double) {});
+                    if (face >= 0) {
+                        if (!scattered && !ground) L += beta * band_value(scene.background.color, b);
+                        break;
+                    }
+                    scattered = true;
+                    beta *= o.albedo;
+                    if (beta <= 0.0) break;
+                    for (const DirectionalLight& l : lights) {
+                        PathState shadow = s;
+                        shadow.d = -l.w;
+                        L += beta * l.E0[static_cast<size_t>(b)] * hg_phase(o.g, -dot(l.w, s.d)) *
+                             std::exp(-optical_depth(g, shadow));
+                    }
+                    if (beta < opt.roulette_weight) {
+                        if (rng.uniform() < 0.5) beta *= 2.0; else break;
+                    }
+                    s.d = rotate_direction(s.d, hg_sample_mu(o.g, rng.uniform()), 2.0 * std::numbers::pi * rng.uniform());
+                }
+            }
+            acc[(static_cast<size_t>(pix) * nb + b) * 2] += L;
+            acc[(static_cast<size_t>(pix) * nb + b) * 2 + 1] += L * L;
+        }
+        if ((si - s0) % 4096 == 0) progress.update(static_cast<double>(si - s0));
+    }
+    progress.finish();
+    MPI_Reduce(d.rank() == 0 ? MPI_IN_PLACE : acc.data(), acc.data(), static_cast<int>(acc.size()), MPI_DOUBLE,
+               MPI_SUM, 0, d.comm());
+    if (d.rank() != 0) return {};
+
+    Image img(W, H);
+    img.stderr_rgb.assign(static_cast<size_t>(pixels) * 3, 0.0f);
+    for (std::int64_t pix = 0; pix < pixels; ++pix) {
+        float* rgba = &img.rgba[static_cast<size_t>(pix) * 4];
+        for (int c = 0; c < 3; ++c) {
+            const int b = nb == 3 ? c : 0;
+            const double sum = acc[(static_cast<size_t>(pix) * nb + b) * 2], sum2 = acc[(static_cast<size_t>(pix) * nb + b) * 2 + 1];
+            const double mean = sum / spp;
+            const double var = spp > 1 ? std::max(0.0, sum2 / spp - mean * mean) * spp / (spp - 1) : 0.0;
+            rgba[c] = static_cast<float>(mean);
+            img.stderr_rgb[static_cast<size_t>(pix) * 3 + c] = static_cast<float>(std::sqrt(var / spp));
+        }
+        rgba[3] = static_cast<float>(alpha[pix]);
+    }
+    return img;
+}
+
+}  // namespace nimbus::mc

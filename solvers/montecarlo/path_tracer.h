@@ -1,0 +1,28 @@
+// Path-traced camera image (issue 3 item 2), the Monte Carlo reference for the ray caster.
+//
+// Per pixel sample: a view ray through the pixel (src/render/camera.h; row 0 at the top) is
+// followed through the replicated grid with free-path sampling (grid_walk.h); at each
+// collision the throughput takes the albedo (implicit capture) and next-event estimation adds
+// every light term's single-scattered radiance through a shadow ray,
+//   L += beta a E0_l p(w_l · (-d)) exp(-∫ kappa ds toward -w_l),
+// then the path continues in an HG-sampled direction (Russian roulette below the roulette
+// weight). A view ray that leaves unscattered sees the background colour; scattered paths that
+// leave see nothing (the background is not a light source, as in the forward tracer).
+// alpha = 1 - T along the view ray (first band).
+//
+// Collective over ctx.decomp.comm(): the pixel-sample index range [0, W H spp) is split into
+// contiguous blocks over the ranks; sample s draws from the Philox stream keyed by (seed, s),
+// so the image is the same for any rank count up to round-off. Per-pixel standard error of
+// the mean over the samples goes to Image::stderr_rgb. Image on rank 0, empty elsewhere.
+// Background kind "ground" is not modelled here: it is rendered black (logged).
+#pragma once
+
+#include "src/model/model.h"
+#include "src/model/options.h"
+#include "src/render/image.h"
+
+namespace nimbus::mc {
+
+Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt);
+
+}  // namespace nimbus::mc

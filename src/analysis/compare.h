@@ -1,0 +1,40 @@
+// Error metrics between two runs (`nimbus compare`, jobs/study.py). Pure functions over dense
+// arrays; B is the reference. Not collective, no I/O.
+//
+//   relative L2       ||a - b||_2 / ||b||_2             over cells with density > 0
+//   max relative      max |a - b| / max |b|             over the same cells
+//   RMS z             sqrt(mean(((a - b) / s_b)²))      where the reference has a standard
+//                                                       error s_b > 0 (Monte Carlo): ≈ 1 when a
+//                                                       agrees with b within b's noise
+//   image RMSE        sqrt(mean over pixels and RGB of (a - b)²), relative: ||a - b|| / ||b||
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+namespace nimbus {
+
+struct FieldError {
+    double rel_l2 = 0.0;
+    double max_rel = 0.0;
+    double rms_z = -1.0;        // -1 when no standard error was given
+    std::size_t cells = 0;      // cells compared (density > 0)
+    double norm_b = 0.0;        // ||b||_2 over those cells
+};
+
+// a, b: one value per cell; density selects the cells (> 0); stderr_b may be null or hold one
+// value per cell. Throws Error if the sizes differ. With ||b|| = 0 the relative errors are 0
+// when a = b there too and +inf otherwise.
+FieldError field_error(const std::vector<double>& a, const std::vector<double>& b,
+                       const std::vector<double>& density, const std::vector<double>* stderr_b);
+
+struct ImageError {
+    double rmse = 0.0;
+    double rel_error = 0.0;
+    std::size_t pixels = 0;
+};
+
+// a, b: RGBA float images of the same size (alpha ignored). Throws Error if the sizes differ.
+ImageError image_error(const std::vector<float>& a_rgba, const std::vector<float>& b_rgba);
+
+}  // namespace nimbus

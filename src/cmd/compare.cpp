@@ -1,0 +1,98 @@
+// `nimbus compare A.h5 B.h5 [--json] [--image-a A.exr --image-b B.exr]`: the error of run A
+// against the reference run B (src/analysis/compare.h): per band, relative L2 and max relative
+// error of fields/fluence_diffuse/<band> over cells with density > 0, and the RMS of
+// (a - b) / stderr when B has fields/fluence_diffuse_stderr/<band> (a Monte Carlo reference);
+// image RMSE and relative error when both images are given. Rank 0 reads and prints; an error
+// is reported on every rank.
+#include <fmt/format.h>
+#include <mpi.h>
+
+#include <cstdio>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "io/output/hdf5_reader.h"
+#include "io/output/image_io.h"
+#include "src/analysis/compare.h"
+#include "src/cmd/commands.h"
+#include "src/core/error.h"
+
+namespace nimbus::cmd {
+namespace {
+
+struct CompareArgs {
+    std::string a, b, image_a, image_b;
+    bool json = false;
+};
+
+nlohmann::json compare_runs(const CompareArgs& args) {
+    const std::string field = "fields/fluence_diffuse", err = "fields/fluence_diffuse_stderr";
+    const std::vector<std::string> bands = list_group(args.b, field);
+    if (bands.empty()) throw Error(fmt::format("'{}' has no {} datasets", args.b, field));
+    const FieldData density = read_field(args.b, "fields/density");
+    nlohmann::json out = {{"a", args.a}, {"b", args.b}, {"bands", nlohmann::json::array()}};
+    for (const std::string& band : bands) {
+        const std::string path = field + "/" + band;
+        if (!has_dataset(args.a, path)) throw Error(fmt::format("'{}' has no {} (the reference has)", args.a, path));
+        const FieldData fa = read_field(args.a, path), fb = read_field(args.b, path);
+        if (fa.shape != fb.shape)
+            throw Error(fmt::format("{}: grids differ ({}x{}x{} against {}x{}x{})", path, fa.shape[0], fa.shape[1],
+                                    fa.shape[2], fb.shape[0], fb.shape[1], fb.shape[2]));
+        std::vector<double> stderr_b;
+        const bool with_stderr = has_dataset(args.b, err + "/" + band);
+        if (with_stderr) stderr_b = read_field(args.b, err + "/" + band).values;
+        const FieldError e = field_error(fa.values, fb.values, density.values, with_stderr ? &stderr_b : nullptr);
+        nlohmann::json j = {{"band", band}, {"rel_l2", e.rel_l2}, {"max_rel", e.max_rel}, {"cells", e.cells}};
+        if (with_stderr) j["rms_z"] = e.rms_z;
+        out["bands"].push_back(j);
+    }
+    if (!args.image_a.empty() || !args.image_b.empty()) {
+        if (args.image_a.empty() || args.image_b.empty())
+            throw Error("compare: give both --image-a and --image-b");
+        const Image ia = read_exr(args.image_a), ib = read_exr(args.image_b);
+        if (ia.width != ib.width || ia.height != ib.height)
+            throw Error(fmt::format("compare: images differ in size ({}x{} against {}x{})", ia.width, ia.height,
+                                    ib.width, ib.height));
+        const ImageError e = image_error(ia.rgba, ib.rgba);
+        out["image"] = {{"rmse", e.rmse}, {"rel_error", e.rel_error}, {"pixels", e.pixels}};
+    }
+    return out;
+}
+
+void print_table(const nlohmann::json& r) {
+    std::printf("%s", fmt::format("{} against reference {}\n", r["a"].get<std::string>(), r["b"].get<std::string>()).c_str());
+    std::printf("%s", fmt::format("{:<10} {:>12} {:>12} {:>10} {:>10}\n", "band", "rel L2", "max rel", "RMS z", "cells").c_str());
+    for (const auto& b : r["bands"])
+        std::printf("%s", fmt::format("{:<10} {:>12.4e} {:>12.4e} {:>10} {:>10}\n", b["band"].get<std::string>(),
+                                      b["rel_l2"].get<double>(), b["max_rel"].get<double>(),
+                                      b.contains("rms_z") ? fmt::format("{:.3f}", b["rms_z"].get<double>()) : "-",
+                                      b["cells"].get<std::size_t>()).c_str());
+    if (r.contains("image"))
+        std::printf("%s", fmt::format("image: RMSE {:.4e}, relative error {:.4e} over {} pixels\n",
+                                      r["image"]["rmse"].get<double>(), r["image"]["rel_error"].get<double>(),
+                                      r["image"]["pixels"].get<std::size_t>()).c_str());
+}
+
+}  // namespace
+
+void add_compare_command(CLI::App& app) {
+    auto args = std::make_shared<CompareArgs>();
+    CLI::App* cmd = app.add_subcommand("compare", "error of run A against reference run B (HDF5 outputs)");
+    cmd->add_option("a", args->a, "the run to assess (nimbus.h5)")->required()->check(CLI::ExistingFile);
+    cmd->add_option("b", args->b, "the reference run (nimbus.h5), e.g. Monte Carlo")->required()->check(CLI::ExistingFile);
+    cmd->add_flag("--json", args->json, "print JSON instead of a table");
+    cmd->add_option("--image-a", args->image_a, "image of run A (EXR)")->check(CLI::ExistingFile);
+    cmd->add_option("--image-b", args->image_b, "image of the reference (EXR)")->check(CLI::ExistingFile);
+    cmd->callback([args] {
+        int rank = 0;
+        MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+        nlohmann::json result;
+        run_collective(MPI_COMM_WORLD, [&] {
+            if (rank == 0) result = compare_runs(*args);
+        });
+        if (rank != 0) return;
+        if (args->json) std::printf("%s\n", result.dump(2).c_str()); else print_table(result);
+    });
+}
+
+}  // namespace nimbus::cmd

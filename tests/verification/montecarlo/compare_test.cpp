@@ -1,0 +1,46 @@
+// The error metrics of `nimbus compare` (src/analysis/compare.h) on hand-computed cases.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "src/analysis/compare.h"
+#include "src/core/error.h"
+
+namespace nimbus {
+namespace {
+
+TEST(Compare, FieldMetricsOverCellsWithDensity) {
+    const std::vector<double> b{1.0, 2.0, 2.0, 100.0}, a{1.0, 3.0, 1.0, -5.0};
+    const std::vector<double> rho{1.0, 0.5, 2.0, 0.0};  // the last cell is empty: ignored
+    const FieldError e = field_error(a, b, rho, nullptr);
+    EXPECT_EQ(e.cells, 3u);
+    EXPECT_DOUBLE_EQ(e.rel_l2, std::sqrt(2.0) / 3.0);  // ||(0, 1, -1)|| / ||(1, 2, 2)||
+    EXPECT_DOUBLE_EQ(e.max_rel, 0.5);                  // max |d| = 1, max |b| = 2
+    EXPECT_EQ(e.rms_z, -1.0);
+}
+
+TEST(Compare, RmsZUsesTheReferenceStandardError) {
+    const std::vector<double> b{1.0, 2.0, 3.0}, a{1.5, 1.0, 3.0}, rho{1, 1, 1}, s{0.5, 0.5, 0.0};
+    const FieldError e = field_error(a, b, rho, &s);
+    EXPECT_DOUBLE_EQ(e.rms_z, std::sqrt((1.0 + 4.0) / 2.0));  // z = 1, -2; the s = 0 cell skipped
+}
+
+TEST(Compare, ZeroReferenceAndSizeMismatch) {
+    const std::vector<double> z{0.0, 0.0}, rho{1, 1};
+    EXPECT_EQ(field_error(z, z, rho, nullptr).rel_l2, 0.0);
+    EXPECT_EQ(field_error({1.0, 0.0}, z, rho, nullptr).rel_l2, std::numeric_limits<double>::infinity());
+    EXPECT_THROW(field_error({1.0}, z, rho, nullptr), Error);
+}
+
+TEST(Compare, ImageMetricsIgnoreAlpha) {
+    const std::vector<float> b{1, 2, 2, 1, 0, 0, 0, 0}, a{1, 2, 4, 0, 0, 0, 1, 0};
+    const ImageError e = image_error(a, b);
+    EXPECT_EQ(e.pixels, 2u);
+    EXPECT_DOUBLE_EQ(e.rmse, std::sqrt(5.0 / 6.0));  // differences (0, 0, 2), (0, 0, 1)
+    EXPECT_DOUBLE_EQ(e.rel_error, std::sqrt(5.0) / 3.0);
+    EXPECT_THROW(image_error(a, {1, 2, 3, 4}), Error);
+}
+
+}  // namespace
+}  // namespace nimbus

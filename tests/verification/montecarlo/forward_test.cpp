@@ -1,0 +1,245 @@
+// Verification of the forward Monte Carlo (solvers/montecarlo): Philox known answers; slab
+// reflectance/transmittance and interior fluence against the independent slab reference
+// (z-tests with a fixed seed); energy balance; pure absorber and Beer-Lambert; same seed same
+// result; 1 rank (MPI_COMM_SELF) against all ranks; the replicated-memory limit.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "solvers/montecarlo/forward.h"
+#include "solvers/montecarlo/montecarlo.h"
+#include "solvers/montecarlo/philox.h"
+#include "src/core/error.h"
+#include "tests/support/mpi_test.h"
+#include "tests/support/slab_reference.h"
+
+namespace nimbus::mc {
+namespace {
+
+TEST(Philox, MatchesRandom123KnownAnswers) {
+    EXPECT_EQ(philox4x32_10({0, 0, 0, 0}, {0, 0}),
+              (Philox4x32{0x6627e8d5u, 0xe169c58du, 0xbc57ac4cu, 0x9b00dbd8u}));
+    EXPECT_EQ(philox4x32_10({0xffffffffu, 0xffffffffu, 0xffffffffu, 0xffffffffu}, {0xffffffffu, 0xffffffffu}),
+              (Philox4x32{0x408f276du, 0x41c83b0eu, 0xa20bc7c6u, 0x6d5451fdu}));
+    EXPECT_EQ(philox4x32_10({0x243f6a88u, 0x85a308d3u, 0x13198a2eu, 0x03707344u}, {0xa4093822u, 0x299f31d0u}),
+              (Philox4x32{0xd16cfe09u, 0x94fdccebu, 0x5001e420u, 0x24126ea1u}));
+}
+
+// A homogeneous slab of nx x ny x nz unit cells, periodic in x and y, density 1.
+struct Slab {
+    Decomposition d;
+    Medium m;
+    Slab(MPI_Comm comm, double tau0, double albedo, double g, Int3 n = {8, 8, 32}, double rho = 1.0)
+        : d(comm, n, {0, 0, 0}, {true, true, false}) {
+        m.grid.n = n;
+        m.grid.h = 1.0;
+        m.rho = Field<double>(d.local(), 1, 1, 0.0);
+        for_each_cell(d.local(), [&](int i, int j, int k) { m.rho(i, j, k) = rho; });
+        m.bands = {BandOptics{"gray", tau0 / n[2], albedo, g}};
+    }
+};
+
+DirectionalLight beam(double mu0) {
+    return {"sun", {std::sqrt(1.0 - mu0 * mu0), 0.0, -mu0}, {1.0}};
+}
+
+MonteCarloOptions options(std::int64_t photons, std::uint64_t seed = 7) {
+    MonteCarloOptions o;
+    o.photons = photons;
+    o.seed = seed;
+    o.batches = 32;
+    return o;
+}
+
+struct SlabCase {
+    double tau0, albedo, g, mu0;
+    std::int64_t photons;
+};
+
+class SlabAgainstReference : public ::testing::TestWithParam<SlabCase> {};
+
+// R and T (diffuse only) within 3 standard errors of the slab reference; the per-cell interior
+// fluence: z = (MC - reference cell average) / stderr has RMS ≈ 1 over the cells and no
+// |z| > 5 (batch means with 32 batches: z is t-distributed with 31 degrees of freedom).
+TEST_P(SlabAgainstReference, ReflectanceTransmittanceAndProfile) {
+    const SlabCase c = GetParam();
+    Slab slab(MPI_COMM_WORLD, c.tau0, c.albedo, c.g);
+    const ForwardResult r = trace_forward(slab.d, slab.m, {beam(c.mu0)}, options(c.photons));
+    const Counters& m = r.counters[0];
+    const Counters& se = r.counters_stderr[0];
+    const double P_in = m[incident];
+    EXPECT_NEAR(P_in, c.mu0 * 64.0, 1e-9);
+    const double R = m[escaped_zhi] / P_in, sR = se[escaped_zhi] / P_in;
+    const double T = m[escaped_zlo] / P_in, sT = se[escaped_zlo] / P_in;
+
+    test::SlabProblem p{c.tau0, c.albedo, c.g, c.mu0};
+    p.profile_levels = 64;
+    const test::SlabSolution ref = test::solve_slab(p);
+    EXPECT_NEAR(R, ref.reflected, 3.0 * sR) << "R: MC " << R << " ± " << sR << ", reference " << ref.reflected;
+    EXPECT_NEAR(T, ref.transmitted_diffuse, 3.0 * sT) << "T: MC " << T << " ± " << sT << ", reference " << ref.transmitted_diffuse;
+    EXPECT_LT(sR, 0.01 * ref.reflected + 1e-3);  // the estimate is actually informative
+    // direct beam: binomial; its batch stderr is 0 when no photon gets through (tau0/mu0 = 20)
+    const double t_dir = std::exp(-c.tau0 / c.mu0);
+    const double s_dir = std::max(se[escaped_direct] / P_in, std::sqrt(t_dir * (1 - t_dir) / c.photons));
+    EXPECT_NEAR(m[escaped_direct] / P_in, t_dir, 3.0 * s_dir);
+
+    // Cell k spans depths tau0 (31 - k, 32 - k) / 32: Simpson over reference levels.
+    double z2 = 0.0, zmax = 0.0, count = 0.0;
+    for_each_cell(slab.d.local(), [&](int i, int j, int k) {
+        const size_t l = static_cast<size_t>(2 * (31 - k));
+        const double expect = (ref.fluence[l] + 4.0 * ref.fluence[l + 1] + ref.fluence[l + 2]) / 6.0;
+        const double z = (r.fluence[0](i, j, k) - expect) / r.fluence_stderr[0](i, j, k);
+        z2 += z * z;
+        zmax = std::max(zmax, std::abs(z));
+        count += 1.0;
+    });
+    double sums[2] = {z2, count}, tot[2];
+    MPI_Allreduce(sums, tot, 2, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+    double zmax_all = 0.0;
+    MPI_Allreduce(&zmax, &zmax_all, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    const double rms = std::sqrt(tot[0] / tot[1]);
+    EXPECT_GT(rms, 0.85);
+    EXPECT_LT(rms, 1.25);
+    EXPECT_LT(zmax_all, 5.0);
+    if (test::world_rank() == 0)
+        std::printf("    tau0 %g a %g g %g mu0 %g: R %.5f ± %.5f (ref %.5f), T %.5f ± %.5f (ref %.5f), "
+                    "fluence z rms %.3f max %.2f, %.3g collisions/s\n",
+                    c.tau0, c.albedo, c.g, c.mu0, R, sR, ref.reflected, T, sT, ref.transmitted_diffuse,
+                    rms, zmax_all, static_cast<double>(r.collisions) / r.seconds);
+}
+
+// Every value of the grid at least once: g {0, 0.85}, albedo {0.9, 0.99, 1},
+// tau0 {1, 10}, incidence {0°, 60°}.
+INSTANTIATE_TEST_SUITE_P(Slabs, SlabAgainstReference,
+                         ::testing::Values(SlabCase{1.0, 0.9, 0.0, 1.0, 200000},
+                                           SlabCase{10.0, 0.99, 0.85, 0.5, 100000},
+                                           SlabCase{1.0, 1.0, 0.85, 0.5, 200000},
+                                           SlabCase{10.0, 1.0, 0.0, 1.0, 40000},
+                                           SlabCase{10.0, 0.9, 0.85, 1.0, 100000},
+                                           SlabCase{1.0, 0.99, 0.0, 0.5, 200000}));
+
+// A cloud-like blob, no periodic axes, sun and sky: every watt that enters is absorbed or
+// escapes. Exactly (round-off) when roulette's zero-mean weight change is counted, and to
+// 1e-3 without it.
+TEST(Forward, EnergyBalance) {
+    const Int3 n{12, 10, 8};
+    Decomposition d(MPI_COMM_WORLD, n);
+    Medium m;
+    m.grid.n = n;
+    m.grid.h = 2.0;
+    m.rho = Field<double>(d.local(), 1, 1, 0.0);
+    for_each_cell(d.local(), [&](int i, int j, int k) {
+        const double x = (i + 0.5) / n[0] - 0.5, y = (j + 0.5) / n[1] - 0.5, z = (k + 0.5) / n[2] - 0.5;
+        m.rho(i, j, k) = std::max(0.0, 1.0 - 4.0 * (x * x + y * y + z * z));
+    });
+    m.bands = {BandOptics{"r", 0.8, 0.9, 0.85}, BandOptics{"g", 0.8, 0.9, 0.85}, BandOptics{"b", 1.5, 0.99, 0.5}};
+    const std::vector<DirectionalLight> lights{
+        {"sun", normalized(Vec3{0.5, 0.3, -0.8}), {1.0, 0.9, 0.8}},
+        {"sky[0]", normalized(Vec3{-0.2, 0.7, -0.4}), {0.1, 0.2, 0.3}}};
+    const ForwardResult r = trace_forward(d, m, lights, options(60000));
+    for (int b = 0; b < 3; ++b) {
+        const Counters& c = r.counters[static_cast<size_t>(b)];
+        double escaped = c[escaped_direct];
+        for (int f = 0; f < 6; ++f) escaped += c[escaped_xlo + f];
+        EXPECT_NEAR(c[absorbed] + escaped - c[roulette_net], c[incident], 1e-12 * c[incident]);
+        EXPECT_NEAR(c[absorbed] + escaped, c[incident], 1e-3 * c[incident]);
+        EXPECT_GT(c[absorbed], 0.0);
+        // incident = Σ E0 A_projected, A_projected over the three entry faces (h = 2 m)
+        const double area_sun = (0.5 * 10 * 8 + 0.3 * 12 * 8 + 0.8 * 12 * 10) / norm(Vec3{0.5, 0.3, -0.8}) * 4.0;
+        const double area_sky = (0.2 * 10 * 8 + 0.7 * 12 * 8 + 0.4 * 12 * 10) / norm(Vec3{-0.2, 0.7, -0.4}) * 4.0;
+        EXPECT_NEAR(c[incident], lights[0].E0[static_cast<size_t>(b)] * area_sun + lights[1].E0[static_cast<size_t>(b)] * area_sky, 1e-9);
+    }
+    // bands r and g share optics and are traced once: under one light their tallies are
+    // exactly proportional to E0
+    const ForwardResult sun = trace_forward(d, m, {lights[0]}, options(3000));
+    EXPECT_NEAR(sun.counters[1][absorbed] / sun.counters[0][absorbed], 0.9, 1e-14);
+    EXPECT_NEAR(sun.counters[1][diffuse_volume] / sun.counters[0][diffuse_volume], 0.9, 1e-14);
+}
+
+// Albedo 0: nothing scatters, so the diffuse fluence is exactly zero; the unscattered tally
+// follows Beer-Lambert: the cell average of E0 exp(-kappa s / mu0) over depth.
+TEST(Forward, PureAbsorberFollowsBeerLambert) {
+    const double tau0 = 3.0, mu0 = 0.6;
+    Slab slab(MPI_COMM_WORLD, tau0, 0.0, 0.85, {4, 4, 16});
+    ForwardSettings s;
+    s.tally_reduced = true;
+    const ForwardResult r = trace_forward(slab.d, slab.m, {beam(mu0)}, options(40000), s);
+    const double kappa = tau0 / 16;
+    double z2 = 0.0, count = 0.0, zmax = 0.0;
+    for_each_cell(slab.d.local(), [&](int i, int j, int k) {
+        EXPECT_EQ(r.fluence[0](i, j, k), 0.0);
+        const double depth = 16 - (k + 1);
+        const double expect = mu0 / kappa * (std::exp(-kappa * depth / mu0) - std::exp(-kappa * (depth + 1) / mu0));
+        const double z = (r.reduced[0](i, j, k) - expect) / r.reduced_stderr[0](i, j, k);
+        z2 += z * z;
+        count += 1.0;
+        zmax = std::max(zmax, std::abs(z));
+    });
+    double sums[2] = {z2, count}, tot[2];
+    MPI_Allreduce(sums, tot, 2, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+    const double rms = std::sqrt(tot[0] / tot[1]);
+    EXPECT_GT(rms, 0.8);
+    EXPECT_LT(rms, 1.3);
+    EXPECT_LT(zmax, 5.0);
+    const Counters& c = r.counters[0];
+    EXPECT_EQ(c[escaped_zhi], 0.0);
+    EXPECT_NEAR(c[escaped_direct] / c[incident], std::exp(-tau0 / mu0), 3.0 * r.counters_stderr[0][escaped_direct] / c[incident]);
+    EXPECT_NEAR(c[absorbed] + c[escaped_direct], c[incident], 1e-12 * c[incident]);
+}
+
+TEST(Forward, SameSeedSameResultOtherSeedDiffers) {
+    Slab slab(MPI_COMM_WORLD, 2.0, 0.95, 0.7);
+    const std::vector<DirectionalLight> L{beam(0.8)};
+    const ForwardResult a = trace_forward(slab.d, slab.m, L, options(5000, 3));
+    const ForwardResult b = trace_forward(slab.d, slab.m, L, options(5000, 3));
+    const ForwardResult c = trace_forward(slab.d, slab.m, L, options(5000, 4));
+    int same = 1, differs = 0;
+    for_each_cell(slab.d.local(), [&](int i, int j, int k) {
+        same &= a.fluence[0](i, j, k) == b.fluence[0](i, j, k) && a.fluence_stderr[0](i, j, k) == b.fluence_stderr[0](i, j, k);
+        differs |= a.fluence[0](i, j, k) != c.fluence[0](i, j, k);
+    });
+    EXPECT_TRUE(same);
+    EXPECT_TRUE(differs);
+}
+
+// Decomposition invariance: the world run equals a run of the whole grid on MPI_COMM_SELF to
+// round-off (the batches are the same photons; only the order of the final sums changes).
+TEST(Forward, AllRanksMatchOneRank) {
+    const std::vector<DirectionalLight> L{beam(0.7), {"sky[0]", normalized(Vec3{0.3, -0.5, -0.6}), {0.4}}};
+    Slab world(MPI_COMM_WORLD, 4.0, 0.98, 0.85, {6, 6, 12});
+    Slab self(MPI_COMM_SELF, 4.0, 0.98, 0.85, {6, 6, 12});
+    const ForwardResult a = trace_forward(world.d, world.m, L, options(8000));
+    const ForwardResult b = trace_forward(self.d, self.m, L, options(8000));
+    double worst = 0.0, peak = 0.0;
+    for_each_cell(world.d.local(), [&](int i, int j, int k) {
+        worst = std::max(worst, std::abs(a.fluence[0](i, j, k) - b.fluence[0](i, j, k)));
+        worst = std::max(worst, std::abs(a.fluence_stderr[0](i, j, k) - b.fluence_stderr[0](i, j, k)));
+        peak = std::max(peak, b.fluence[0](i, j, k));
+    });
+    EXPECT_GT(peak, 0.0);
+    EXPECT_LE(worst, 1e-12 * peak);
+    EXPECT_EQ(a.photons, b.photons);
+    EXPECT_EQ(a.collisions, b.collisions);
+    for (int q = 0; q < ncounters; ++q) EXPECT_NEAR(a.counters[0][q], b.counters[0][q], 1e-12 * a.counters[0][incident]);
+}
+
+TEST(Forward, ReplicatedMemoryLimitIsACollectiveError) {
+    Slab slab(MPI_COMM_WORLD, 1.0, 0.9, 0.0);
+    MonteCarloOptions o = options(1000);
+    o.max_replicated_memory_gb = 1e-6;
+    EXPECT_THROW(trace_forward(slab.d, slab.m, {beam(1.0)}, o), Error);
+}
+
+TEST(Forward, StopsAtTargetRelativeError) {
+    Slab slab(MPI_COMM_WORLD, 2.0, 0.99, 0.85);
+    MonteCarloOptions o = options(2000000);
+    o.target_rel_error = 0.05;
+    const ForwardResult r = trace_forward(slab.d, slab.m, {beam(1.0)}, o);
+    EXPECT_EQ(r.stop_reason, "target_rel_error");
+    EXPECT_LT(r.batches, 32);
+    EXPECT_LT(r.rel_error, 0.05);
+}
+
+}  // namespace
+}  // namespace nimbus::mc
