@@ -159,6 +159,8 @@ std::string scene_to_toml(const Scene& s) {
     o << "tolerance = " << num(df.tolerance) << "\n";
     o << "max_iterations = " << df.max_iterations << "\n";
     o << "margin = " << df.margin << "\n";
+    o << "max_transport_length = " << num(df.max_transport_length) << "\n";
+    o << "clamp_negative = " << boolean(df.clamp_negative) << "\n";
 
     o << "\n[output]\n";
     o << "dir = " << str(s.output.dir) << "\n";

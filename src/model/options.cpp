@@ -26,6 +26,7 @@ void DiffusionOptions::validate() const {
     if (tolerance <= 0 || tolerance >= 1) throw Error("model.diffusion.tolerance must be in (0, 1)");
     if (max_iterations < 1) throw Error("model.diffusion.max_iterations must be >= 1");
     if (margin < 0) throw Error("model.diffusion.margin must be >= 0");
+    if (max_transport_length < 0) throw Error("model.diffusion.max_transport_length must be >= 0 (0 = solve region size)");
 }
 
 }  // namespace nimbus

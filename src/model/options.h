@@ -28,6 +28,9 @@ struct DiffusionOptions {
     double tolerance = 1e-8;          // relative residual
     int max_iterations = 200;
     int margin = 2;                   // cells of margin around the bounding box of non-empty cells
+    double max_transport_length = 0;  // m, cap on 1/kappa_tr in D (0 = the solve region's size)
+    bool clamp_negative = true;       // set negative P1 fluence (boundary layers lit by a strongly
+                                      // forward-scattered source) to 0; counts are reported
     void validate() const;
 };
 

@@ -1,0 +1,177 @@
+// Benchmark of the diffusion model (solvers/diffusion) on the built-in cumulus at N³.
+//
+//   mpiexec -n 2 ./bench_diffusion 128          (jobs/bench_diffusion.sh runs the sweep)
+//
+// For each hypre solver (pfmg-pcg, smg-pcg, pfmg, smg) the whole diffusion phase of the model
+// (sources, region, assembly, setup, solve, true residual, flux, halo) is timed, next to a
+// bare hypre PFMG-PCG solve of the same matrix and right-hand side (setup + solve only, no
+// residual check): the floor the model is measured against. Domain 1.28 km, sigma_t 0.05/m,
+// a = 0.9, g = 0.85, sun along (0.3, 0.2, -1); tolerance 1e-8 (true relative residual).
+// A warm-up solve runs first (the first hypre setup pays for paging memory in).
+// Prints a markdown table on rank 0; times are the max over ranks.
+#include <mpi.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "solvers/diffusion/assemble.h"
+#include "solvers/diffusion/band_groups.h"
+#include "solvers/diffusion/diffusion.h"
+#include "solvers/diffusion/hypre_struct.h"
+#include "solvers/diffusion/solve_region.h"
+#include "solvers/diffusion/sources.h"
+#include "solvers/light/sun_transmittance.h"
+#include "src/core/error.h"
+#include "src/core/log.h"
+#include "src/scene/medium.h"
+
+namespace {
+
+using namespace nimbus;
+
+double max_over_ranks(double v, MPI_Comm comm) {
+    double g = 0;
+    MPI_Allreduce(&v, &g, 1, MPI_DOUBLE, MPI_MAX, comm);
+    return g;
+}
+
+struct Bare {
+    int iterations = 0;
+    double setup = 0, solve = 0;
+};
+
+// hypre PFMG-PCG on the model's matrix, nothing else: the floor.
+Bare bare_pfmg_pcg(const Decomposition& d, const diffusion::DiffusionProblem& p) {
+    const auto region = diffusion::find_solve_region(d, p, DiffusionOptions{}.margin);
+    const Int3 s = region.box.shape();
+    const diffusion::Assembler as(p, 1.0 / (p.h * std::max({s[0], s[1], s[2]})));  // as the model
+    const Box box = d.local().intersect(region.box);
+    diffusion::hypre::Grid grid(d.comm(), box, {0, 0, 0});
+    diffusion::hypre::SymmetricStencil7 stencil;
+    diffusion::hypre::Matrix A(d.comm(), grid, stencil);
+    std::vector<double> vals, rhs;
+    for_each_cell(box, [&](int i, int j, int k) {
+        const auto row = as.row(i, j, k);
+        vals.insert(vals.end(), {row.diag, -row.coupling[diffusion::kXm],
+                                 -row.coupling[diffusion::kYm], -row.coupling[diffusion::kZm]});
+        rhs.push_back(as.rhs(0, i, j, k));
+    });
+    A.set_box_values(box, vals);
+    A.assemble();
+    diffusion::hypre::Vector b(d.comm(), grid), x(d.comm(), grid);
+    b.set_box_values(box, rhs);
+    b.assemble();
+    x.assemble();
+    HYPRE_StructSolver pcg, pfmg;
+    HYPRE_StructPCGCreate(d.comm(), &pcg);
+    HYPRE_StructPCGSetTol(pcg, 1e-8);
+    HYPRE_StructPCGSetMaxIter(pcg, 200);
+    HYPRE_StructPCGSetTwoNorm(pcg, 1);
+    HYPRE_StructPFMGCreate(d.comm(), &pfmg);
+    HYPRE_StructPFMGSetMaxIter(pfmg, 1);
+    HYPRE_StructPFMGSetTol(pfmg, 0.0);
+    HYPRE_StructPFMGSetZeroGuess(pfmg);
+    HYPRE_StructPFMGSetRelaxType(pfmg, 1);  // hypre's defaults otherwise
+    HYPRE_StructPCGSetPrecond(pcg, HYPRE_StructPFMGSolve, HYPRE_StructPFMGSetup, pfmg);
+    Bare out;
+    MPI_Barrier(d.comm());
+    double t0 = MPI_Wtime();
+    HYPRE_StructPCGSetup(pcg, A.get(), b.get(), x.get());
+    out.setup = max_over_ranks(MPI_Wtime() - t0, d.comm());
+    MPI_Barrier(d.comm());
+    t0 = MPI_Wtime();
+    HYPRE_StructPCGSolve(pcg, A.get(), b.get(), x.get());
+    out.solve = max_over_ranks(MPI_Wtime() - t0, d.comm());
+    HYPRE_Int its = 0;
+    HYPRE_StructPCGGetNumIterations(pcg, &its);
+    out.iterations = static_cast<int>(its);
+    HYPRE_StructPCGDestroy(pcg);
+    HYPRE_StructPFMGDestroy(pfmg);
+    return out;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    MPI_Init(&argc, &argv);
+    int rank = 0, size = 1;
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    nimbus::log::init(rank, "warn");
+    const int N = argc > 1 ? std::atoi(argv[1]) : 64;
+    std::vector<std::string> solvers = {"pfmg-pcg", "smg-pcg", "pfmg", "smg"};
+    if (argc > 2) solvers.assign(argv + 2, argv + argc);
+    int status = 0;
+    try {
+        Decomposition d(MPI_COMM_WORLD, {N, N, N});
+        Medium m;
+        m.grid.n = {N, N, N};
+        m.grid.h = 1280.0 / N;
+        m.rho = Field<double>(d.local(), 1, 1, 0.0);
+        fill_procedural_density(MediumSpec{}, d, m.rho);
+        m.bands = {BandOptics{"gray", 0.05, 0.9, 0.85}};
+        const std::vector<DirectionalLight> lights = {
+            DirectionalLight{"sun", normalized(Vec3{0.3, 0.2, -1.0}), {1.0}}};
+        Report light_report;
+        const LightTransport light = compute_light_transport(d, m, lights, light_report);
+        Scene scene;
+
+        auto run = [&](const std::string& solver, Report& report) {
+            DiffusionOptions opt;
+            opt.solver = solver;
+            opt.max_iterations = 1000;
+            auto model = make_diffusion_model(opt);
+            DiffuseSolution sol;
+            MPI_Barrier(d.comm());
+            model->solve(SolveContext{scene, d, m, light, report}, sol);
+        };
+        {
+            Report warm;
+            run("pfmg-pcg", warm);
+        }
+        const auto groups = diffusion::group_bands(m.bands, lights);
+        const auto problem = diffusion::make_problem(d, m, light, groups[0]);
+        const Bare bare = bare_pfmg_pcg(d, problem);
+        const double floor = bare.setup + bare.solve;
+        if (rank == 0) {
+            std::printf("\n### diffusion, cumulus %d³, %d rank(s), tolerance 1e-8\n\n", N, size);
+            std::printf("| N | ranks | solver | region cells | iterations | true residual | assemble s | setup s | solve s | diffusion phase s | / bare |\n");
+            std::printf("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
+            std::printf("| %d | %d | bare hypre PFMG-PCG | | %d | | | %.3f | %.3f | %.3f | 1.00 |\n", N,
+                        size, bare.iterations, bare.setup, bare.solve, floor);
+        }
+        for (const auto& solver : solvers) {
+            Report report;
+            std::string failure;
+            try {
+                run(solver, report);
+            } catch (const Error& e) {
+                failure = e.what();
+            }
+            const auto& v = report.values()["diffusion"];
+            const double total = max_over_ranks(report.time("diffusion"), d.comm());
+            const double as = max_over_ranks(report.time("diffusion/assemble"), d.comm());
+            const double su = max_over_ranks(report.time("diffusion/setup"), d.comm());
+            const double so = max_over_ranks(report.time("diffusion/solve"), d.comm());
+            if (rank != 0) continue;
+            if (!failure.empty()) {
+                std::printf("| %d | %d | %s | | failed: %.80s | | | | | | |\n", N, size, solver.c_str(),
+                            failure.c_str());
+                continue;
+            }
+            const auto& sys = v["systems"][0];
+            std::printf("| %d | %d | %s | %lld | %d | %.1e | %.3f | %.3f | %.3f | %.3f | %.2f |\n", N,
+                        size, solver.c_str(), static_cast<long long>(v["region"]["cells"].get<std::int64_t>()),
+                        sys["iterations"].get<int>(), sys["true_residual"].get<double>(), as, su, so,
+                        total, total / floor);
+        }
+    } catch (const std::exception& e) {
+        if (rank == 0) std::fprintf(stderr, "bench_diffusion: %s\n", e.what());
+        status = 1;
+    }
+    MPI_Finalize();
+    return status;
+}

@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# Diffusion model benchmark (jobs/bench/bench_diffusion.cpp) at 1 and 2 ranks.
+#   jobs/bench_diffusion.sh [build-dir] [N ...]      e.g. jobs/bench_diffusion.sh build 64 128
+# Prints one markdown table per (N, ranks). SOLVERS="pfmg-pcg smg-pcg" limits the solvers.
+set -euo pipefail
+BUILD=${1:-build}
+shift || true
+SIZES=${*:-64 128}
+BIN="$BUILD/bin/bench_diffusion"
+[ -x "$BIN" ] || { echo "missing $BIN: cmake --build $BUILD --target bench_diffusion" >&2; exit 1; }
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+for n in $SIZES; do
+  for np in 1 2; do
+    mpiexec -n "$np" --oversubscribe --bind-to none "$BIN" "$n" ${SOLVERS:-}
+  done
+done

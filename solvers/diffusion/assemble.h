@@ -1,0 +1,50 @@
+// Assembly of the 7-point cell-centred finite-volume rows of one DiffusionProblem
+// (equation and face rules in diffusion_kernel.h). Not collective: reads the rank's fields
+// (owned + the 1-ghost layer that the caller halo-exchanged) and answers per cell.
+// The solver drivers (hypre, PETSc) copy rows into their own storage.
+#pragma once
+
+#include <array>
+
+#include "solvers/diffusion/diffusion_kernel.h"
+#include "solvers/diffusion/diffusion_problem.h"
+#include "src/core/vec3.h"
+
+namespace nimbus::diffusion {
+
+// Stencil entry order used everywhere in this folder.
+enum Entry { kXm = 0, kXp, kYm, kYp, kZm, kZp };
+
+// A matrix row: A(P,P) = diag, A(P, P ± e_axis) = -coupling[entry]. Empty cells: diag 1.
+struct CellRow {
+    double diag = 1.0;
+    std::array<double, 6> coupling{};
+};
+
+class Assembler {
+public:
+    // p must outlive the Assembler. kappa_floor (1/m): lower bound of kappa_tr in D.
+    explicit Assembler(const DiffusionProblem& p, double kappa_floor = 0.0)
+        : p_(p), kappa_floor_(kappa_floor) {}
+
+    bool full(int i, int j, int k) const { return p_.kappa_tr(i, j, k) > 0.0; }
+    CellRow row(int i, int j, int k) const;
+    // Whether full cell (i, j, k) has a Marshak face (to an empty cell or the domain boundary).
+    bool has_marshak_face(int i, int j, int k) const;
+    // Right-hand side r (index into p.Q0/p.G) at cell (i, j, k); 0 in empty cells.
+    double rhs(int r, int i, int j, int k) const;
+    // F = 4π (G - D∇U) at the cell centre: mean of the two face fluxes per axis. U must have
+    // its ghost layer exchanged. Zero in empty cells.
+    Vec3 flux(int r, const Field<double>& U, int i, int j, int k) const;
+
+private:
+    // G consistent with the capped kappa_tr: Q1 / max(kappa_tr, floor).
+    double G_eff(int r, int i, int j, int k, int axis) const;
+    // The neighbour across face (axis, s) of cell c; skip = periodic axis of length 1 (the
+    // face couples the cell to itself and carries nothing).
+    FaceInput neighbor(int r, int axis, int s, const Int3& c, Int3& nb, bool& skip) const;
+    const DiffusionProblem& p_;
+    double kappa_floor_ = 0.0;
+};
+
+}  // namespace nimbus::diffusion

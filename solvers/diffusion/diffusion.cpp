@@ -1,0 +1,73 @@
+#include "solvers/diffusion/diffusion.h"
+
+#include <numbers>
+
+#include "solvers/diffusion/band_groups.h"
+#include "solvers/diffusion/solve_diffusion.h"
+#include "solvers/diffusion/sources.h"
+
+namespace nimbus {
+namespace {
+
+class DiffusionModel final : public ScatteringModel {
+public:
+    explicit DiffusionModel(const DiffusionOptions& opt) : opt_(opt) { opt_.validate(); }
+
+    std::string name() const override { return "diffusion"; }
+
+    nlohmann::json options() const override {
+        return {{"solver", opt_.solver},
+                {"tolerance", opt_.tolerance},
+                {"max_iterations", opt_.max_iterations},
+                {"margin", opt_.margin},
+                {"max_transport_length", opt_.max_transport_length},
+                {"clamp_negative", opt_.clamp_negative}};
+    }
+
+    void solve(const SolveContext& ctx, DiffuseSolution& out) override {
+        ScopedTimer timer(ctx.report, "diffusion");
+        const Decomposition& d = ctx.decomp;
+        const Medium& m = ctx.medium;
+        out = DiffuseSolution{};
+        for (int b = 0; b < m.nbands(); ++b) {
+            out.fluence.emplace_back(d.local(), 1, 1, 0.0);
+            out.flux.emplace_back(d.local(), 1, 3, 0.0);
+        }
+        const auto groups = diffusion::group_bands(m.bands, ctx.light.lights);
+        ctx.report.values()["diffusion"]["matrices"] = groups.size();
+        int solves = 0;
+        for (const auto& group : groups) {
+            diffusion::DiffusionProblem p;
+            {
+                ScopedTimer t(ctx.report, "sources");
+                p = diffusion::make_problem(d, m, ctx.light, group);
+            }
+            const auto res = diffusion::solve_diffusion(d, p, opt_, ctx.report);
+            solves += static_cast<int>(group.rhs_band.size());
+            for (const auto& use : group.bands) {
+                auto& fl = out.fluence[static_cast<size_t>(use.band)];
+                auto& fx = out.flux[static_cast<size_t>(use.band)];
+                const auto& U = res.U[static_cast<size_t>(use.rhs)];
+                const auto& F = res.flux[static_cast<size_t>(use.rhs)];
+                const double s = use.scale;
+                for_each_cell(fl.allocated(), [&](int i, int j, int k) {
+                    fl(i, j, k) = 4.0 * std::numbers::pi * s * U(i, j, k);
+                    for (int c = 0; c < 3; ++c) fx(i, j, k, c) = s * F(i, j, k, c);
+                });
+            }
+        }
+        ctx.report.values()["diffusion"]["solves"] = solves;
+        ctx.report.values()["diffusion"]["bands"] = m.nbands();
+    }
+
+private:
+    DiffusionOptions opt_;
+};
+
+}  // namespace
+
+std::unique_ptr<ScatteringModel> make_diffusion_model(const DiffusionOptions& opt) {
+    return std::make_unique<DiffusionModel>(opt);
+}
+
+}  // namespace nimbus

@@ -1,0 +1,85 @@
+// Per-cell finite-volume kernel of the diffusion (P1) equation: pure functions, no MPI, no
+// allocation. The driver (assemble.cpp) loops over a rank's cells and calls them.
+//
+// Equation (DESIGN §1; derivation in solvers/diffusion/README.md), per band, with
+//   D = 1/(3 kappa_tr),  G = Q1/kappa_tr,  kappa_tr = kappa (1 - a g):
+//   -∇·(D ∇U) + sigma_a U = Q0 - ∇·G                     (Max 2004 eq. 4, Q1 = (1/4π)∫Q w dw)
+//   flux F = 4π (G - D ∇U)
+//   Marshak, inward normal n:  U - 2D n·∇U + 2 n·G = 0    (Max 2004 eq. 7 with the same Q1)
+//
+// Cell-centred finite volumes on cubes of edge h; the cell balance divided by h reads
+//   Σ_faces D_f (U_P - U_N) + sigma_a h² U_P = Q0 h² - h Σ_faces G_f·n_out
+// Interior face between two full cells: D_f from the mean face density (kappa_tr of the two
+// cells averaged; Max 2004 §2), G_f the mean of the two cell values. Face to an empty cell or
+// to the outside of the domain: Marshak by ghost elimination with the full cell's D and G (the
+// "non-empty one"). With U_f = (U_P+U_E)/2 and n·∇U = (U_P-U_E)/h the ghost U_E drops out:
+//   diagonal += 2 D h / (4D + h),   rhs += (n·G) h² / (4D + h)
+// and the face carries the outgoing flux F·n_out = 2π U_f, U_f = (4D U_P - 2h n·G)/(4D + h).
+// Empty cells (kappa_tr = 0) get an identity row with zero rhs and no couplings.
+// D uses max(kappa_tr, kappa_floor): the transport mean free path is capped at the size of the
+// solve region (DiffusionOptions::max_transport_length). Without the cap, the near-empty cells at
+// a cloud's smooth edge (rho -> 0, D -> ∞) form near-singular floating patches and PFMG-PCG took
+// 343 iterations on the 64³ cumulus; with it, 25. U is nearly flat across such cells either way.
+// G is capped consistently, G = Q1 / max(kappa_tr, floor), since F = 4π(Q1 - ∇U/3)/kappa_tr.
+#pragma once
+
+#include <array>
+
+namespace nimbus::diffusion {
+
+// What one face of a full cell P sees. neighbor_full: the cell across is inside the solve
+// domain (or a periodic image) and has kappa_tr > 0.
+struct FaceInput {
+    double kappa_floor = 0.0; // 1/m, lower bound of kappa_tr in D
+    bool neighbor_full = false;
+    double kappa_tr_n = 0.0;  // kappa_tr of the neighbour (1/m), used when full
+    double G_n = 0.0;         // neighbour's G component along this face's axis (W/m²/sr units of U)
+};
+
+// Result for one face: coupling to the neighbour (the off-diagonal entry is -coupling),
+// the diagonal and rhs contributions.
+struct FaceTerms {
+    double coupling = 0.0;
+    double diag = 0.0;
+    double rhs = 0.0;
+};
+
+inline double diffusion_coefficient(double kappa_tr, double kappa_floor) {
+    return 1.0 / (3.0 * (kappa_tr > kappa_floor ? kappa_tr : kappa_floor));
+}
+
+// Face of full cell P along an axis on side s (+1: high face, -1: low face). G_p is P's G
+// component along that axis. The outward normal of the face is s·e_axis.
+inline FaceTerms face_terms(double kappa_tr_p, double G_p, int s, const FaceInput& nb, double h) {
+    FaceTerms t;
+    if (nb.neighbor_full) {
+        const double D_f = diffusion_coefficient(0.5 * (kappa_tr_p + nb.kappa_tr_n), nb.kappa_floor);
+        const double G_f = 0.5 * (G_p + nb.G_n);
+        t.coupling = D_f;
+        t.diag = D_f;
+        t.rhs = -h * s * G_f;
+    } else {
+        const double D = diffusion_coefficient(kappa_tr_p, nb.kappa_floor);
+        const double n_dot_G = -s * G_p;  // inward normal n = -s e_axis
+        t.diag = 2.0 * D * h / (4.0 * D + h);
+        t.rhs = n_dot_G * h * h / (4.0 * D + h);
+    }
+    return t;
+}
+
+// Fluence-per-4π flux through a face of full cell P, positive along +axis, from the solved U:
+// interior face  phi = G_f - D_f (U_hi - U_lo)/h; Marshak face phi·n_out = U_f / 2.
+inline double face_flux(double kappa_tr_p, double G_p, double U_p, int s, const FaceInput& nb,
+                        double U_n, double h) {
+    if (nb.neighbor_full) {
+        const double D_f = diffusion_coefficient(0.5 * (kappa_tr_p + nb.kappa_tr_n), nb.kappa_floor);
+        const double G_f = 0.5 * (G_p + nb.G_n);
+        return G_f - D_f * s * (U_n - U_p) / h;
+    }
+    const double D = diffusion_coefficient(kappa_tr_p, nb.kappa_floor);
+    const double n_dot_G = -s * G_p;
+    const double U_f = (4.0 * D * U_p - 2.0 * h * n_dot_G) / (4.0 * D + h);
+    return s * 0.5 * U_f;
+}
+
+}  // namespace nimbus::diffusion

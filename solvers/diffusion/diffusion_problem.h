@@ -1,0 +1,55 @@
+// One diffusion system: coefficients on the rank's box and one or more right-hand sides that
+// share the matrix (diffusion_kernel.h for the equation). Built by the model from the medium
+// and the light pass (sources.h), or directly by tests (manufactured solutions).
+//
+// All fields live on d.local() of the Decomposition the system is solved on. Ownership: plain
+// values, the caller owns everything.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "src/core/box.h"
+#include "src/core/field.h"
+
+namespace nimbus::diffusion {
+
+struct DiffusionProblem {
+    double h = 1.0;                    // cell edge, metres
+    Int3 n{0, 0, 0};                   // global cells per axis
+    std::array<bool, 3> periodic{false, false, false};
+    Field<double> kappa_tr;            // 1/m, owned + 1 ghost, halo-exchanged; 0 = empty cell
+    Field<double> sigma_a;             // rho * sigma_a, 1/m, owned (ghosts unused)
+    std::vector<Field<double>> Q0;     // per rhs: (1/4π)∫Q dw, owned
+    std::vector<Field<double>> G;      // per rhs: Q1/kappa_tr, 3 components, owned + 1 ghost
+};
+
+// The solve region: bounding box of the full cells grown by `margin`, clipped to the domain;
+// the whole axis where periodic. Empty when no cell is full.
+struct SolveRegion {
+    Box box;
+    std::int64_t cells() const { return box.cells(); }
+};
+
+// What the solve did, for the run report.
+struct SolveStats {
+    int iterations = 0;            // total over restarts
+    int restarts = 0;              // extra rounds needed to push the TRUE residual below tol
+    double reported_residual = 0;  // solver's own final relative residual
+    double true_residual = 0;      // ||b - A x|| / ||b||, computed after the solve
+    double assemble_seconds = 0, setup_seconds = 0, solve_seconds = 0;
+    // Negative U of the P1 solution (global counts), before clamping: in cells with a Marshak
+    // face (the boundary layer where P1 with a forward-peaked source fails) and elsewhere.
+    std::int64_t negative_boundary_cells = 0, negative_interior_cells = 0;
+    double min_U = 0.0, min_U_interior = 0.0;  // most negative U (all cells / no Marshak face)
+};
+
+struct DiffusionResult {
+    std::vector<Field<double>> U;     // per rhs, owned + 1 ghost (halo-exchanged), 0 in empty cells
+    std::vector<Field<double>> flux;  // per rhs, F = 4π (G - D∇U), 3 components, owned + 1 ghost
+    SolveRegion region;
+    std::vector<SolveStats> stats;    // per rhs
+};
+
+}  // namespace nimbus::diffusion

@@ -1,0 +1,15 @@
+// The region the diffusion system is solved on: the bounding box of the full cells
+// (kappa_tr > 0) grown by `margin` cells and clipped to the domain; the whole axis along a
+// periodic axis. Cells outside are empty and carry no diffuse light in this model, so the
+// answer is the same as on the whole domain (the Marshak faces of the cloud do not change).
+#pragma once
+
+#include "solvers/diffusion/diffusion_problem.h"
+#include "src/core/decomposition.h"
+
+namespace nimbus::diffusion {
+
+// Collective over d.comm() (two MPI_Allreduce). Empty box when no cell is full anywhere.
+SolveRegion find_solve_region(const Decomposition& d, const DiffusionProblem& p, int margin);
+
+}  // namespace nimbus::diffusion

@@ -1,0 +1,136 @@
+// Verification of the diffusion model against closed-form P1 solutions:
+//  (b) infinite-medium point source, U = S exp(-r/L) / (4π D r);
+//  (c) plane-parallel slab under a collimated sun with Marshak boundaries at both faces
+//      (periodic x/y), against the closed-form solution of the 1-D P1 equation.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "diffusion_test_util.h"
+#include "solvers/diffusion/diffusion.h"
+#include "solvers/diffusion/solve_diffusion.h"
+#include "tests/support/mpi_test.h"
+
+namespace nimbus {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+// (b) A point source of strength S (∫ Q0 dV = S, in the centre cell) in a uniform medium with
+// diffusion length L; the Marshak boundary is 5L away (e^-5 down). Compared at 1 <= r/L <= 2
+// for h = L/4 and L/8: the 7-point scheme is second order (measured 4.4% -> 0.9%).
+double point_source_error(int refine) {
+    const double L = 1.0, h = L / (4 * refine), S = 1.0;
+    const int n = 40 * refine + 1, c = n / 2;
+    const double kappa_tr = 1.0 / h, D = 1.0 / (3.0 * kappa_tr), sigma_a = D / (L * L);
+    Decomposition d(MPI_COMM_WORLD, {n, n, n});
+    auto p = test::make_problem(
+        d, h, [&](double, double, double) { return kappa_tr; },
+        [&](double, double, double) { return sigma_a; },
+        [&](double x, double y, double z) {
+            const double x0 = (c + 0.5) * h, tol = 0.1 * h;
+            const bool centre = std::abs(x - x0) < tol && std::abs(y - x0) < tol && std::abs(z - x0) < tol;
+            return centre ? S / (h * h * h) : 0.0;
+        },
+        [](double, double, double) { return Vec3{}; });
+    DiffusionOptions opt;
+    opt.tolerance = 1e-10;
+    Report report;
+    const auto res = diffusion::solve_diffusion(d, p, opt, report);
+    EXPECT_LE(res.stats[0].true_residual, opt.tolerance);
+    double max_err = 0.0;
+    for_each_cell(d.local(), [&](int i, int j, int k) {
+        const double r = h * std::sqrt(double((i - c) * (i - c) + (j - c) * (j - c) + (k - c) * (k - c)));
+        if (r < L || r > 2.0 * L) return;
+        const double exact = S * std::exp(-r / L) / (4.0 * kPi * D * r);
+        max_err = std::max(max_err, std::abs(res.U[0](i, j, k) / exact - 1.0));
+    });
+    return test::global_max(max_err, MPI_COMM_WORLD);
+}
+
+TEST(DiffusionAnalytic, InfiniteMediumPointSource) {
+    const double e1 = point_source_error(1), e2 = point_source_error(2);
+    const double order = std::log2(e1 / e2);
+    if (test::world_rank() == 0)
+        std::printf("point source: max relative error at L..2L: h=L/4 %.4f, h=L/8 %.4f, order %.2f\n", e1, e2, order);
+    EXPECT_LT(e2, 0.01);
+    EXPECT_GT(order, 1.8);
+}
+
+// (c) The 1-D P1 problem for a uniform slab 0 <= z <= H under a sun of irradiance E0 along
+// w (mu0 = -w_z > 0), T = exp(-beta (H - z)), beta = kappa/mu0:
+//   D U'' - sigma_a U = -Q0 + G',  Q0 = q e^{beta (z-H)},  q = kappa a E0/(4π),
+//   G = Q1z/kappa_tr = -g mu0 Q0/kappa_tr  =>  G' = -g kappa Q0/kappa_tr,
+// so D U'' - sigma_a U = -(1 + g kappa/kappa_tr) Q0. With k = sqrt(sigma_a/D):
+//   U = A e^{beta (z-H)} + c1 e^{k (z-H)} + c2 e^{-k z},  A = -(1 + g kappa/kappa_tr) q / (D beta² - sigma_a),
+// and Marshak at z = 0 (n = +z): U - 2D U' + 2G = 0, at z = H (n = -z): U + 2D U' - 2G = 0.
+struct SlabP1 {
+    double H, kappa, a, g, mu0, E0;
+    double D, sigma_a, kappa_tr, k, beta, q, A, c1 = 0, c2 = 0;
+
+    SlabP1(double H_, double kappa_, double a_, double g_, double mu0_, double E0_)
+        : H(H_), kappa(kappa_), a(a_), g(g_), mu0(mu0_), E0(E0_) {
+        kappa_tr = kappa * (1 - a * g);
+        D = 1.0 / (3.0 * kappa_tr);
+        sigma_a = kappa * (1 - a);
+        k = std::sqrt(sigma_a / D);
+        beta = kappa / mu0;
+        q = kappa * a * E0 / (4 * kPi);
+        A = -(1 + g * kappa / kappa_tr) * q / (D * beta * beta - sigma_a);
+        auto G = [&](double z) { return -g * mu0 * q * std::exp(beta * (z - H)) / kappa_tr; };
+        const double e = std::exp(-k * H);
+        // [e(1-2Dk)  (1+2Dk)] [c1]   [-(A e^{-beta H}(1-2D beta) + 2G(0))]
+        // [(1+2Dk)  e(1-2Dk)] [c2] = [-(A (1+2D beta) - 2G(H))           ]
+        const double a11 = e * (1 - 2 * D * k), a12 = 1 + 2 * D * k;
+        const double a21 = 1 + 2 * D * k, a22 = e * (1 - 2 * D * k);
+        const double r1 = -(A * std::exp(-beta * H) * (1 - 2 * D * beta) + 2 * G(0));
+        const double r2 = -(A * (1 + 2 * D * beta) - 2 * G(H));
+        const double det = a11 * a22 - a12 * a21;
+        c1 = (r1 * a22 - a12 * r2) / det;
+        c2 = (a11 * r2 - a21 * r1) / det;
+    }
+    double U(double z) const {
+        return A * std::exp(beta * (z - H)) + c1 * std::exp(k * (z - H)) + c2 * std::exp(-k * z);
+    }
+};
+
+// Max error of the model's fluence against 4π U_exact, relative to max 4π U_exact.
+double slab_error(int nz, double g) {
+    const double H = 8.0, h = H / nz, E0 = 2.0;
+    const BandOptics band{"gray", 1.0, 0.9, g};
+    const Vec3 w = normalized(Vec3{0.3, 0.2, -1.0});
+    Decomposition d(MPI_COMM_WORLD, {4, 4, nz}, {0, 0, 0}, {true, true, false});
+    auto rho = [](int, int, int) { return 1.0; };
+    Medium m = test::make_medium(d, h, band, rho);
+    LightTransport light = test::column_light(d, h, w, E0, rho);
+    Scene scene;
+    Report report;
+    SolveContext ctx{scene, d, m, light, report};
+    DiffusionOptions opt;
+    opt.tolerance = 1e-11;
+    auto model = make_diffusion_model(opt);
+    DiffuseSolution sol;
+    model->solve(ctx, sol);
+    const SlabP1 exact(H, 1.0, band.albedo, band.g, -w.z, E0);
+    double err = 0.0, umax = 0.0;
+    for (int k = 0; k < nz; ++k) umax = std::max(umax, 4 * kPi * exact.U((k + 0.5) * h));
+    for_each_cell(d.local(), [&](int i, int j, int k) {
+        err = std::max(err, std::abs(sol.fluence[0](i, j, k) - 4 * kPi * exact.U((k + 0.5) * h)));
+    });
+    return test::global_max(err, MPI_COMM_WORLD) / umax;
+}
+
+TEST(DiffusionAnalytic, SlabUnderSunMatchesClosedFormP1) {
+    for (double g : {0.0, 0.85}) {
+        const double e1 = slab_error(32, g), e2 = slab_error(64, g), e3 = slab_error(128, g);
+        const double order = std::log2(e2 / e3);
+        if (test::world_rank() == 0)
+            std::printf("slab g=%.2f: relative max error %.3e %.3e %.3e, order %.2f\n", g, e1, e2, e3, order);
+        EXPECT_LT(e3, 1e-3);
+        EXPECT_GT(order, 1.8);
+    }
+}
+
+}  // namespace
+}  // namespace nimbus
