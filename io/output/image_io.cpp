@@ -3,8 +3,8 @@
 // EXR: scanline file, ZIP compression, FLOAT channels R, G, B, A (+ stderr.R/G/B when the image
 // carries a Monte Carlo standard error), linear radiance W/(m² sr), bit-exact on read.
 // PNG: 8-bit RGBA through libpng's simplified write API, which also writes the sRGB chunk;
-// colour = srgb8(v * exposure) (io/output/srgb.h), alpha = round(255 clamp(A, 0, 1)) with no
-// exposure (it is an opacity, not a radiance), not premultiplied.
+// colour = srgb8(v * exposure) (io/output/srgb.h); opaque (alpha 255), because the colour
+// already holds the background seen through the volume (the EXR keeps the volume's alpha).
 // Both go to "<path>.tmp" first and are renamed into place when complete.
 #include "io/output/image_io.h"
 
@@ -123,7 +123,7 @@ void write_png(const std::string& path, const Image& img, double exposure) {
     std::vector<std::uint8_t> bytes(pixels * 4);
     for (size_t p = 0; p < pixels; ++p) {
         for (int c = 0; c < 3; ++c) bytes[p * 4 + c] = srgb8(img.rgba[p * 4 + c] * exposure);
-        bytes[p * 4 + 3] = linear8(img.rgba[p * 4 + 3]);
+        bytes[p * 4 + 3] = 255;  // opaque: the colour already contains the background seen through the volume
     }
 
     const std::string tmp = path + ".tmp";

@@ -11,7 +11,7 @@ namespace nimbus {
 // Linear float32 RGBA; if img.stderr_rgb is set, also channels stderr.R/G/B.
 void write_exr(const std::string& path, const Image& img);
 Image read_exr(const std::string& path);
-// 8-bit sRGB RGBA preview: each channel value v becomes srgb(clamp(v * exposure, 0, 1)).
+// 8-bit sRGB preview, opaque: each colour value v becomes srgb(clamp(v * exposure, 0, 1)).
 void write_png(const std::string& path, const Image& img, double exposure);
 
 }  // namespace nimbus

@@ -1,0 +1,212 @@
+#include "src/pipeline/pipeline.h"
+
+#include <H5public.h>
+#include <HYPRE_config.h>
+#include <fmt/format.h>
+#include <petscversion.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "io/output/hdf5_writer.h"
+#include "io/output/image_io.h"
+#include "io/scene/density_import.h"
+#include "io/scene/scene_toml.h"
+#include "solvers/light/sun_transmittance.h"
+#include "solvers/registry.h"
+#include "src/core/error.h"
+#include "src/core/log.h"
+#include "src/render/camera.h"
+#include "src/render/ray_box.h"
+#include "src/render/raycaster.h"
+
+namespace nimbus {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Rank 0 creates the output folder and checks it is writable; every rank fails together.
+void prepare_output_dir(MPI_Comm comm, const std::string& dir) {
+    int rank = 0;
+    MPI_Comm_rank(comm, &rank);
+    std::string msg;
+    if (rank == 0) {
+        std::error_code ec;
+        fs::create_directories(dir, ec);
+        const fs::path probe = fs::path(dir) / ".nimbus_write_test";
+        std::ofstream f(probe);
+        if (ec || !f) msg = fmt::format("output folder '{}' cannot be created or is not writable", dir);
+        f.close();
+        fs::remove(probe, ec);
+    }
+    check_collective(comm, msg.empty(), msg);
+}
+
+nlohmann::json library_versions() {
+    int mpi_major = 0, mpi_minor = 0;
+    MPI_Get_version(&mpi_major, &mpi_minor);
+    char mpi_lib[MPI_MAX_LIBRARY_VERSION_STRING];
+    int len = 0;
+    MPI_Get_library_version(mpi_lib, &len);
+    std::string lib(mpi_lib, static_cast<size_t>(len));
+    if (auto nl = lib.find_first_of(",\n"); nl != std::string::npos) lib = lib.substr(0, nl);
+    return {{"nimbus", "0.1.0"},
+            {"mpi", lib},
+            {"mpi_standard", fmt::format("{}.{}", mpi_major, mpi_minor)},
+            {"hdf5", fmt::format("{}.{}.{}", H5_VERS_MAJOR, H5_VERS_MINOR, H5_VERS_RELEASE)},
+            {"hypre", HYPRE_RELEASE_VERSION},
+            {"petsc", fmt::format("{}.{}.{}", PETSC_VERSION_MAJOR, PETSC_VERSION_MINOR, PETSC_VERSION_SUBMINOR)}};
+}
+
+void write_fields(Hdf5Writer& out, const Medium& medium, const LightTransport& light,
+                  const DiffuseSolution& diffuse, const Decomposition& d) {
+    out.write_field("density", medium.rho, "1", "density rho (kappa = rho * sigma_t)");
+    const Box& own = d.local();
+    for (int b = 0; b < medium.nbands(); ++b) {
+        const std::string band = medium.bands[b].name;
+        const double sigma_t = medium.bands[b].sigma_t;
+        if (!light.lights.empty() && light.lights[0].name == "sun") {
+            Field<double> t(own, 0);
+            for_each_cell(own, [&](int i, int j, int k) { t(i, j, k) = light.transmittance(0, sigma_t, i, j, k); });
+            out.write_field("transmittance_sun/" + band, t, "1", "T_sun = exp(-∫ kappa ds) toward the sun");
+        }
+        Field<double> fr(own, 0);
+        for_each_cell(own, [&](int i, int j, int k) { fr(i, j, k) = light.fluence_reduced(medium, b, i, j, k); });
+        out.write_field("fluence_reduced/" + band, fr, "W/m^2", "∫ I_ri dw = Σ E0 T over light terms");
+        out.write_field("fluence_diffuse/" + band, diffuse.fluence[static_cast<size_t>(b)], "W/m^2",
+                        "∫ I_d dw = 4π U, the multiply scattered fluence");
+        if (!diffuse.flux.empty())
+            out.write_field("flux_diffuse/" + band, diffuse.flux[static_cast<size_t>(b)], "W/m^2",
+                            "F = ∫ I_d w dw");
+        if (!diffuse.fluence_stderr.empty())
+            out.write_field("fluence_diffuse_stderr/" + band, diffuse.fluence_stderr[static_cast<size_t>(b)],
+                            "W/m^2", "standard error of fluence_diffuse (batch means)");
+    }
+}
+
+void log_scene(const Scene& s, const Decomposition& d, const ScatteringModel& model) {
+    log::info("scene: {} ({})", s.title, s.source);
+    log::info("grid: {} x {} x {} cells of {} m on {}", s.grid.n[0], s.grid.n[1], s.grid.n[2],
+              s.grid.h(), d.describe());
+    log::info("medium: {}, {} band(s), model '{}', render mode '{}'", to_string(s.medium.kind),
+              s.nbands(), model.name(), to_string(s.render.mode));
+    const auto opts = model.options();
+    if (!opts.empty()) log::info("model options: {}", opts.dump());
+}
+
+// A camera whose view misses the domain renders only background: almost always a mistake in
+// the scene (position/look_at in the wrong units). Probes a 33 x 33 grid of view rays.
+void check_camera_sees_domain(const Scene& s) {
+    if (!s.output.image) return;
+    const Grid grid = make_grid(s.grid);
+    const Camera cam(s.camera, grid);
+    const Vec3 lo = grid.origin, hi = grid.upper();
+    for (int a = 0; a <= 32; ++a)
+        for (int b = 0; b <= 32; ++b) {
+            double t0, t1;
+            const Vec3 dir = cam.direction(a * cam.width() / 32.0, b * cam.height() / 32.0);
+            if (intersect_box(cam.position(), dir, lo, hi, t0, t1) && t1 > 0) return;
+        }
+    throw Error(fmt::format("the camera looks at nothing: the domain [0, {:.4g}] x [0, {:.4g}] x [0, {:.4g}] m "
+                            "is outside its field of view (check camera.position, look_at and units)",
+                            hi.x, hi.y, hi.z));
+}
+
+}  // namespace
+
+Scene load_run_scene(MPI_Comm comm, const RunOptions& opts) {
+    Scene scene;
+    run_collective(comm, [&] {
+        scene = opts.scene_path.empty() ? default_scene(opts.overrides)
+                                        : load_scene_file(opts.scene_path, opts.overrides);
+        if (!opts.out_dir.empty()) scene.output.dir = opts.out_dir;
+    });
+    return scene;
+}
+
+RunResult run_pipeline(MPI_Comm comm, const RunOptions& opts) {
+    return run_pipeline(comm, load_run_scene(comm, opts));
+}
+
+RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
+    Report report;
+    RunResult result;
+    const double t_start = wall_time();
+    std::unique_ptr<ScatteringModel> model;
+    run_collective(comm, [&] {
+        model = make_model(scene.model);
+        check_camera_sees_domain(scene);
+    });
+    if (scene.output.hdf5 || scene.output.image) prepare_output_dir(comm, scene.output.dir);
+
+    const Decomposition d(comm, scene.grid.n, scene.grid.process_grid, scene.grid.periodic);
+    log_scene(scene, d, *model);
+
+    Medium medium;
+    medium.grid = make_grid(scene.grid);
+    medium.bands = scene.bands;
+    medium.rho = Field<double>(d.local(), 1, 1, 0.0);
+    {
+        ScopedTimer t(report, "medium");
+        if (scene.medium.kind == MediumSpec::Kind::hdf5 || scene.medium.kind == MediumSpec::Kind::raw)
+            read_density(scene.medium, d, medium.rho);
+        else
+            fill_procedural_density(scene.medium, d, medium.rho);
+        check_density(medium.rho, d);
+    }
+
+    const LightTransport light = compute_light_transport(d, medium, make_lights(scene), report);
+    DiffuseSolution diffuse;
+    const SolveContext ctx{scene, d, medium, light, report};
+    {
+        ScopedTimer t(report, "model");
+        model->solve(ctx, diffuse);
+    }
+
+    Image image;
+    if (scene.output.image) {
+        if (model->renders_image()) {
+            ScopedTimer t(report, "render");
+            image = model->render(ctx);
+        } else {
+            image = render_image(RenderInputs{scene, medium, light, diffuse}, d, report);
+        }
+    }
+
+    const fs::path stem = fs::path(scene.output.dir) / scene.output.name;
+    report.values()["total_seconds_before_output"] = wall_time() - t_start;
+    nlohmann::json summary = report.summarize(d.comm());
+    summary["model"] = model->name();
+    summary["model_options"] = model->options();
+    summary["decomposition"] = d.describe();
+    summary["grid"] = {{"n", scene.grid.n}, {"h_m", scene.grid.h()}};
+    summary["libraries"] = library_versions();
+    if (scene.output.hdf5) {
+        ScopedTimer t(report, "output/hdf5");
+        Hdf5Writer out(d, medium.grid, stem.string() + ".h5");
+        write_fields(out, medium, light, diffuse, d);
+        out.write_string_attribute("/scene", "toml", scene_to_toml(scene));
+        out.write_string_attribute("/run", "report", summary.dump(2));
+        out.commit();
+        result.hdf5_path = out.path();
+    }
+    if (scene.output.image) {
+        std::string msg;
+        if (d.rank() == 0) {
+            try {
+                write_exr(stem.string() + ".exr", image);
+                write_png(stem.string() + ".png", image, scene.render.exposure);
+            } catch (const std::exception& e) {
+                msg = e.what();
+            }
+        }
+        check_collective(d.comm(), msg.empty(), msg);
+        result.exr_path = stem.string() + ".exr";
+        result.png_path = stem.string() + ".png";
+    }
+    summary["total_seconds"] = wall_time() - t_start;
+    result.report = summary;
+    return result;
+}
+
+}  // namespace nimbus

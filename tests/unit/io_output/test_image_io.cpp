@@ -185,7 +185,7 @@ TEST(Png, SignatureSrgbChunkAndKnownValues) {
         EXPECT_EQ(q[0], 255);
         EXPECT_EQ(q[1], 0);
         EXPECT_EQ(q[2], 188);
-        EXPECT_EQ(q[3], x == 0 ? 128 : (x == 1 ? 0 : 255));  // alpha: linear, clamped, rounded
+        EXPECT_EQ(q[3], 255);  // the preview is opaque: colour already holds the background
     }
 }
 
@@ -207,7 +207,7 @@ TEST(Png, ExposureScalesBeforeTheCurve) {
     const int codes[3] = {188, 7, 255};
     for (int x = 0; x < 3; ++x) {
         EXPECT_EQ(png.rgba[x * 4 + 0], codes[x]);
-        EXPECT_EQ(png.rgba[x * 4 + 3], 64);  // round(0.25 * 255) = round(63.75)
+        EXPECT_EQ(png.rgba[x * 4 + 3], 255);  // opaque preview
     }
 }
 

@@ -135,7 +135,8 @@ TEST(SceneLoad, DefaultSceneHasTheFileValues) {
     EXPECT_TRUE(s.camera.domain_units);
     EXPECT_EQ(s.render.mode, RenderMode::scattering);
     EXPECT_EQ(s.render.exposure, 3.0);
-    EXPECT_EQ(s.model.name, "single");
+    EXPECT_EQ(s.model.name, "montecarlo");
+    EXPECT_EQ(s.model.montecarlo.photons, 1000000);
     EXPECT_EQ(s.output.name, "nimbus");
     EXPECT_NO_THROW(s.validate());
 }

@@ -1,0 +1,36 @@
+// The pipeline of one run (DESIGN §2): scene -> decomposition -> medium -> light pass ->
+// multiple-scattering model -> render -> HDF5 + images, with a run report. It does not know
+// which model runs: it asks the registry for one and talks to it through ScatteringModel.
+#pragma once
+
+#include <mpi.h>
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "src/scene/scene.h"
+
+namespace nimbus {
+
+struct RunOptions {
+    std::string scene_path;              // empty: the built-in default scene
+    std::vector<std::string> overrides;  // "key=value" applied to the scene
+    std::string out_dir;                 // non-empty: overrides output.dir
+};
+
+struct RunResult {
+    nlohmann::json report;               // the run report (same on every rank)
+    std::string hdf5_path, exr_path, png_path;  // empty when not written
+};
+
+// Loads the scene of opts (collective: every rank gets the same scene or the same Error).
+Scene load_run_scene(MPI_Comm comm, const RunOptions& opts);
+
+// Collective over comm. Throws Error (on every rank) on bad input or a failed solve; a failed
+// run leaves no output file under its final name.
+RunResult run_pipeline(MPI_Comm comm, const RunOptions& opts);
+RunResult run_pipeline(MPI_Comm comm, const Scene& scene);
+
+}  // namespace nimbus

@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# Each bad input must: exit non-zero (mpiexec reports the worst rank), print exactly one
+# "nimbus: error:" line naming the problem, and finish well before the timeout (no hang).
+set -u
+nimbus=$1 mpiexec=$2 np=$3 scenes=$4
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+pass=0 fail=0
+
+expect_error() {  # expect_error "<grep pattern>" args...
+  local pattern=$1; shift
+  local out
+  out=$(timeout 120 "$mpiexec" -n "$np" "$nimbus" run "$@" --out "$tmp/out" 2>&1)
+  local code=$?
+  local lines
+  lines=$(echo "$out" | grep -c "nimbus: error:")
+  if [ $code -ne 0 ] && [ $code -ne 124 ] && [ "$lines" -eq 1 ] && echo "$out" | grep -q -- "$pattern"; then
+    pass=$((pass + 1))
+  else
+    fail=$((fail + 1))
+    echo "FAIL (exit $code, $lines error lines, want /$pattern/): nimbus run $*"
+    echo "$out" | tail -5
+  fi
+}
+
+printf '[grid\nn = [4, 4, 4]\n' > "$tmp/malformed.toml"
+printf '[grid]\nn = [4, 4, 4]\n[medium]\ndensty = 1.0\n' > "$tmp/misspelled.toml"
+optics='[[optics]]\nname = "gray"\nsigma_t = 1.0\nalbedo = 0.9\ng = 0.5\n[sun]\nirradiance = 1.0\n[sky]\nradiance = 0.1\n[background]\ncolor = 0.1\n[render]\nemission_color = 1.0\n'
+printf "[grid]\nn = [8, 8, 8]\n[medium]\nkind = \"raw\"\nfile = \"d.raw\"\n$optics" > "$tmp/raw.toml"
+head -c 100 /dev/zero > "$tmp/d.raw"
+printf "[grid]\nn = [8, 8, 8]\n[medium]\nkind = \"raw\"\nfile = \"missing.raw\"\n$optics" > "$tmp/missing.toml"
+/usr/bin/python3 - "$tmp/nan.raw" <<'PY'
+import struct, sys
+v = [0.5] * 512; v[77] = float("nan")
+open(sys.argv[1], "wb").write(struct.pack("<512f", *v))
+PY
+printf "[grid]\nn = [8, 8, 8]\n[medium]\nkind = \"raw\"\nfile = \"nan.raw\"\n$optics" > "$tmp/nan.toml"
+/usr/bin/python3 - "$tmp/neg.raw" <<'PY'
+import struct, sys
+v = [0.5] * 512; v[300] = -1.0
+open(sys.argv[1], "wb").write(struct.pack("<512f", *v))
+PY
+printf "[grid]\nn = [8, 8, 8]\n[medium]\nkind = \"raw\"\nfile = \"neg.raw\"\n$optics" > "$tmp/neg.toml"
+small=(--set "grid.n=[12,12,8]" --set "camera.resolution=[16,12]")
+
+expect_error "malformed" "$tmp/malformed.toml"
+expect_error "densty" "$tmp/misspelled.toml"
+expect_error "unknown" "${small[@]}" --set "render.stepp=0.5"
+expect_error "albedo" "${small[@]}" --set "optics[0].albedo=1.5"
+expect_error "g" "${small[@]}" --set "optics[1].g=1.0"
+expect_error "zero-size" --set "grid.n=[0,8,8]"
+expect_error "looks at nothing" "${small[@]}" --set "camera.look_at=[0.5,-1.3,0.42]"
+expect_error "has 100 bytes but the grid needs 2048" "$tmp/raw.toml"
+expect_error "missing.raw" "$tmp/missing.toml"
+expect_error "NaN\|nan" "$tmp/nan.toml"
+expect_error "-1" "$tmp/neg.toml"
+expect_error "model" "${small[@]}" --set "model.name=\"nonsense\""
+expect_error "looks at nothing" "${small[@]}" --set "camera.look_at=[0.5,-3.0,0.42]"
+# Unwritable output folder: a path below a regular file.
+out=$(timeout 120 "$mpiexec" -n "$np" "$nimbus" run "${small[@]}" --out /proc/version/x 2>&1); code=$?
+if [ $code -ne 0 ] && [ $code -ne 124 ] && echo "$out" | grep -q "nimbus: error:.*not writable"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: unwritable output folder (exit $code)"; echo "$out" | tail -3; fi
+# More ranks than z cells.
+if [ "$np" -gt 1 ]; then expect_error "no cells" --set "grid.n=[8,8,1]"; fi
+
+echo "$pass passed, $fail failed"
+[ $fail -eq 0 ]
