@@ -15,6 +15,8 @@
 // attribute limit (a JSON report, a TOML scene) need no dense attribute storage.
 #include "io/output/hdf5_writer.h"
 
+#include <functional>
+
 #include <unistd.h>
 
 #include <filesystem>
@@ -169,6 +171,13 @@ void Hdf5Writer::write_string_attribute(const std::string& group, const std::str
         "output file '" + path_ + "', attribute '" + key + "' of '" + group + "'";
     if (w.committed) throw Error(where + ": the file is already committed");
     if (key.empty()) throw Error(where + ": empty attribute name");
+    // Attribute writes are collective: every rank must pass the same value. A mismatch is a
+    // caller bug that would silently corrupt the attribute, so refuse it.
+    const unsigned long long h = std::hash<std::string>{}(value), hv[2] = {h, ~h};
+    unsigned long long hmax[2];
+    MPI_Allreduce(hv, hmax, 2, MPI_UNSIGNED_LONG_LONG, MPI_MAX, w.d.comm());
+    if (hmax[0] != h || hmax[1] != ~h)
+        throw Error(where + ": the value differs between ranks (attributes are collective)");
     bool ok = false;
     {
         h5::Handle g = h5::open_or_create_group(w.file.get(), group);

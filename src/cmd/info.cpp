@@ -63,8 +63,20 @@ void info(const RunOptions& opts) {
 
     const auto lights = make_lights(s);
     const double local_cells = static_cast<double>(own.grown(1).cells());
-    const double fields = 1 + static_cast<double>(lights.size()) + 4.0 * s.nbands();
-    const double bytes = local_cells * 8 * fields + 16.0 * s.camera.width * s.camera.height;
+    // Fields every run holds: rho, tau_rho per light, fluence per band (+ output copies), the
+    // renderer's float view volume (16 bytes/cell) and the image fragments.
+    const double fields = 1 + static_cast<double>(lights.size()) + 2.0 * s.nbands() + 2.0;
+    double bytes = local_cells * 8 * fields + 40.0 * s.camera.width * s.camera.height;
+    std::string what = "light pass, render";
+    if (s.model.name == "montecarlo") {
+        // The density is replicated on every rank with per-band sum/sum² tallies (batch means).
+        bytes += static_cast<double>(d.global().cells()) * (24.0 + 28.0 * s.nbands());
+        what += ", Monte Carlo (replicated grid)";
+    } else if (s.model.name == "diffusion") {
+        // hypre: 7-point matrix + ~6 vectors, x ~1.4 for the multigrid hierarchy; flux per band.
+        bytes += local_cells * 8 * (13 * 1.4 + 3.0 * s.nbands());
+        what += ", diffusion (hypre)";
+    }
 
     log::info("scene: {} ({})", s.title, s.source);
     log::info("grid: {} x {} x {} = {} cells, cell {} m, domain {:.4g} x {:.4g} x {:.4g} m", s.grid.n[0],
@@ -84,8 +96,7 @@ void info(const RunOptions& opts) {
     }
     log::info("light terms: {} (sun {}, sky bins {})", lights.size(), s.sun.enabled ? "on" : "off",
               s.sky.radiance.empty() ? 0 : s.sky.directions);
-    log::info("memory estimate per rank (fields of the light pass, model 'single', render): {:.1f} MiB",
-              bytes / (1 << 20));
+    log::info("memory estimate per rank ({}): {:.1f} MiB", what, bytes / (1 << 20));
     const double tau = s.bands.empty() ? 0 : s.bands[0].sigma_t * cmax * (1 - s.bands[0].albedo * s.bands[0].g);
     std::string advice = tau < 0.3 ? "optically thin: 'single' is close to exact"
                        : tau < 3   ? "intermediate: multiple scattering matters; 'montecarlo' is the reference"

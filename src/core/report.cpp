@@ -47,7 +47,14 @@ nlohmann::json Report::summarize(MPI_Comm comm) const {
     out["phases"] = phases;
     out["peak_memory_bytes_per_rank"] = mems;
     out["ranks"] = size;
-    out["values"] = values_;
+    // Values are rank 0's (they may differ per rank): broadcast so every rank returns the same
+    // JSON, which collective writers (HDF5 attributes) require.
+    std::string values = rank == 0 ? values_.dump() : std::string();
+    int vlen = static_cast<int>(values.size());
+    MPI_Bcast(&vlen, 1, MPI_INT, 0, comm);
+    values.resize(static_cast<size_t>(vlen));
+    MPI_Bcast(values.data(), vlen, MPI_CHAR, 0, comm);
+    out["values"] = nlohmann::json::parse(values);
     return out;
 }
 

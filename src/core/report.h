@@ -23,8 +23,8 @@ public:
     const std::vector<std::pair<std::string, double>>& times() const { return times_; }
     double time(const std::string& name) const;
 
-    // Collective: max over ranks of every phase time and of peak memory; returns the JSON the
-    // run stores (on every rank). Phases absent on some ranks count as 0 there.
+    // Collective: max over ranks of every phase time, peak memory of every rank, and rank 0's
+    // values; returns the same JSON on every rank. Phases absent on some ranks count as 0 there.
     nlohmann::json summarize(MPI_Comm comm) const;
 
 private:

@@ -204,7 +204,10 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
         result.exr_path = stem.string() + ".exr";
         result.png_path = stem.string() + ".png";
     }
-    summary["total_seconds"] = wall_time() - t_start;
+    // Rank 0's clock, so that the report is the same on every rank.
+    double total = wall_time() - t_start;
+    MPI_Bcast(&total, 1, MPI_DOUBLE, 0, d.comm());
+    summary["total_seconds"] = total;
     result.report = summary;
     return result;
 }

@@ -123,6 +123,20 @@ TEST(Hdf5Writer, StringAttributesRoundTripIncludingLargeValues) {
     EXPECT_EQ(read_string_attribute(path, "/", "empty"), "");
 }
 
+TEST(Hdf5Writer, AttributeThatDiffersBetweenRanksIsRefusedOnEveryRank) {
+    // A run report with rank-local values once truncated the attribute silently.
+    ScratchDir dir("h5_attr_mismatch");
+    const Grid grid = test::sample_grid();
+    Decomposition d(MPI_COMM_WORLD, grid.n);
+    Hdf5Writer w(d, grid, dir.file("mismatch.h5"));
+    const std::string value = d.size() == 1 ? "same" : "rank " + std::to_string(d.rank());
+    if (d.size() == 1) {
+        EXPECT_NO_THROW(w.write_string_attribute("/run", "report", value));
+    } else {
+        EXPECT_THROW(w.write_string_attribute("/run", "report", value), Error);
+    }
+}
+
 TEST(Hdf5Writer, TemporaryFileUntilCommit) {
     ScratchDir dir("h5_tmp");
     const Grid grid = test::sample_grid();
