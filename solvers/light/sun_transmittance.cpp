@@ -9,6 +9,7 @@
 
 #include "src/core/error.h"
 #include "src/core/halo.h"
+#include "src/core/progress.h"
 
 namespace nimbus {
 namespace {
@@ -85,6 +86,7 @@ LightTransport compute_light_transport(const Decomposition& d, const Medium& m,
     lt.lights = lights;
     const Int3 n = d.global().hi;
     double wait = 0;
+    Progress progress("light pass", static_cast<double>(lights.size()), d.rank() == 0);
     for (const auto& light : lights) {
         const bool periodic_xy = d.periodic(0) || d.periodic(1);
         if (periodic_xy && std::abs(light.w.z) < 1e-3)
@@ -112,7 +114,9 @@ LightTransport compute_light_transport(const Decomposition& d, const Medium& m,
         wait += stats.wait_seconds;
         exchange_halo(tau, d);
         lt.tau_rho.push_back(std::move(tau));
+        progress.update(static_cast<double>(lt.tau_rho.size()));
     }
+    progress.finish();
     report.values()["light"]["terms"] = lights.size();
     report.values()["light"]["pipeline_wait_seconds_rank0"] = wait;
     return lt;

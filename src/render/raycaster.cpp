@@ -1,5 +1,7 @@
 // Driver of the parallel ray caster (contract in raycaster.h). Per rank:
 //   1. source:    ViewVolume (rho and the view source J_b per cell, occupancy blocks)
+//      balance:   slab decompositions move z-layers of the view volume between ranks so that
+//                 each marches an equal share of the estimated samples (balance.h)
 //   2. march:     for every pixel whose ray crosses the rank's box, integrate the steps this
 //                 rank owns (march.h) into one fragment; ranks at the bottom also shade the
 //                 ground where the ray meets it (ground.h)
@@ -10,9 +12,11 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <utility>
 
 #include "src/core/error.h"
 #include "src/physics/lights.h"
+#include "src/render/balance.h"
 #include "src/render/camera.h"
 #include "src/render/composite.h"
 #include "src/render/ground.h"
@@ -169,6 +173,10 @@ Image render_image(const RenderInputs& in, const Decomposition& d, Report& repor
         ScopedTimer t(report, "source");
         volume = build_view_volume(in, d, camera->position());
     });
+    {
+        ScopedTimer t(report, "balance");
+        volume = balance_view_volume(std::move(volume), d, *camera);
+    }
 
     FragmentBuffer fragments(nb);
     MarchStats stats;
@@ -187,8 +195,11 @@ Image render_image(const RenderInputs& in, const Decomposition& d, Report& repor
     }
     long local[3] = {stats.samples, stats.fragments, stats.ground}, sum[3] = {0, 0, 0};
     MPI_Reduce(local, sum, 3, MPI_LONG, MPI_SUM, 0, d.comm());
+    long max_samples = 0;
+    MPI_Reduce(&stats.samples, &max_samples, 1, MPI_LONG, MPI_MAX, 0, d.comm());
     auto& v = report.values()["render"];
     v["samples"] = sum[0];
+    v["samples_max_rank"] = max_samples;  // balance: samples_max_rank * ranks / samples
     v["fragments"] = sum[1];
     v["ground_pixels"] = sum[2];
     v["width"] = camera->width();

@@ -50,7 +50,8 @@ void check_inputs(const RenderInputs& in, const Box& need) {
     }
 }
 
-// Marks the 8³ blocks of the owned box whose cells or 1-cell apron hold any density.
+}  // namespace
+
 void build_occupancy(ViewVolume& v) {
     const int bs = 1 << ViewVolume::kBlockShift;
     for (int a = 0; a < 3; ++a) v.nblocks[a] = (v.owned.size(a) + bs - 1) / bs;
@@ -85,8 +86,6 @@ void build_occupancy(ViewVolume& v) {
             }
     if (v.occupied_cells.lo[0] >= v.occupied_cells.hi[0]) v.occupied_cells = Box{};
 }
-
-}  // namespace
 
 ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, const Vec3& camera) {
     const Medium& m = in.medium;

@@ -44,4 +44,8 @@ struct ViewVolume {
 // at least 1 ghost layer; throws Error otherwise. Not collective (the caller makes errors so).
 ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, const Vec3& camera);
 
+// (Re)computes v.nblocks, v.occupied and v.occupied_cells from v.owned and v.data (owned box
+// and its ghost layer filled). Not collective.
+void build_occupancy(ViewVolume& v);
+
 }  // namespace nimbus
