@@ -29,6 +29,7 @@ const std::vector<double> kUnitScales = {1.0, 1000.0, 0.01, 0.001};
 const std::vector<std::string> kMediumKinds = {"cumulus", "box", "sphere", "hdf5", "raw"};
 const std::vector<std::string> kCameraUnits = {"domain", "world"};
 const std::vector<std::string> kBackgroundKinds = {"color", "ground"};
+const std::vector<std::string> kLightMethods = {"sweep", "exact"};
 const std::vector<std::string> kRenderModes = {"absorption", "emission", "emission_absorption",
                                                "single_unshadowed", "scattering"};
 // Every model name the file format knows; the pipeline rejects the ones not built.
@@ -268,7 +269,7 @@ Scene convert(const toml::value& tree, const std::string& source, const fs::path
     Scene s;
     s.source = source;
     const TableReader root(source, tree, "",
-                           {"title", "grid", "medium", "optics", "sun", "sky", "camera",
+                           {"title", "grid", "medium", "optics", "sun", "sky", "light", "camera",
                             "background", "render", "model", "output"});
     root.read("title", s.title);
     read_grid(root.table("grid", {"n", "cell_size", "unit", "unit_scale", "process_grid", "periodic"}),
@@ -282,6 +283,9 @@ Scene convert(const toml::value& tree, const std::string& source, const fs::path
     const TableReader sky = root.table("sky", {"radiance", "directions"});
     sky.read_per_band("radiance", s.sky.radiance);
     sky.read("directions", s.sky.directions);
+    const TableReader light = root.table("light", {"method"});
+    s.light.method = static_cast<LightSpec::Method>(
+        light.read_choice("method", kLightMethods, static_cast<int>(s.light.method)));
     read_camera(root.table("camera", {"position", "look_at", "up", "fov", "resolution", "units"}), s.camera);
     const TableReader bg = root.table("background", {"kind", "color", "ground_albedo", "ground_color"});
     s.background.kind = static_cast<BackgroundSpec::Kind>(

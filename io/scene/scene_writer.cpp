@@ -116,6 +116,9 @@ std::string scene_to_toml(const Scene& s) {
     o << "radiance = " << per_band(s.sky.radiance) << "\n";
     o << "directions = " << s.sky.directions << "\n";
 
+    o << "\n[light]\n";
+    o << "method = " << str(to_string(s.light.method)) << "\n";
+
     const CameraSpec& c = s.camera;
     o << "\n[camera]\n";
     o << "position = " << vec(c.position) << "\n";

@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "src/core/error.h"
+#include "src/core/gather.h"
 #include "src/core/halo.h"
 #include "src/core/progress.h"
 
@@ -73,12 +74,41 @@ int dominant_axis(const Vec3& w) {
     return m;
 }
 
+// Long characteristics: every owned cell traces its own ray through the replicated density.
+LightTransport exact_light_transport(const Decomposition& d, const Medium& m,
+                                     const std::vector<DirectionalLight>& lights, Report& report) {
+    const std::vector<double> rho = allgather_global(m.rho, d);
+    const Int3 n = d.global().hi;
+    const std::array<bool, 3> periodic{d.periodic(0), d.periodic(1), d.periodic(2)};
+    LightTransport lt;
+    lt.lights = lights;
+    Progress progress("light pass (exact)", static_cast<double>(lights.size()), d.rank() == 0);
+    for (const auto& light : lights) {
+        for (int a = 0; a < 3; ++a)
+            if (periodic[a] && std::abs(light.w[a]) == norm(light.w))
+                throw Error(fmt::format("light '{}' travels along periodic axis {}: it never leaves the domain",
+                                        light.name, "xyz"[a]));
+        Field<double> tau(d.local(), 1, 1, 0.0);
+        for_each_cell(d.local(), [&](int i, int j, int k) {
+            tau(i, j, k) = exact_tau_rho(rho, n, m.grid.h, light.w, i, j, k, periodic);
+        });
+        exchange_halo(tau, d);
+        lt.tau_rho.push_back(std::move(tau));
+        progress.update(static_cast<double>(lt.tau_rho.size()));
+    }
+    progress.finish();
+    report.values()["light"] = {{"terms", lights.size()}, {"method", "exact"},
+                                {"replicated_memory_gb", 8e-9 * static_cast<double>(rho.size())}};
+    return lt;
+}
+
 }  // namespace
 
 LightTransport compute_light_transport(const Decomposition& d, const Medium& m,
                                        const std::vector<DirectionalLight>& lights, Report& report,
-                                       const sweep::SweepOptions& opt) {
+                                       const sweep::SweepOptions& opt, LightSpec::Method method) {
     ScopedTimer timer(report, "light");
+    if (method == LightSpec::Method::exact) return exact_light_transport(d, m, lights, report);
     if (!d.is_slab_z())
         throw Error(fmt::format("the light pass sweeps along z and needs slabs along z "
                                 "(grid.process_grid = [1, 1, P]); got {}", d.describe()));
@@ -117,13 +147,13 @@ LightTransport compute_light_transport(const Decomposition& d, const Medium& m,
         progress.update(static_cast<double>(lt.tau_rho.size()));
     }
     progress.finish();
-    report.values()["light"]["terms"] = lights.size();
-    report.values()["light"]["pipeline_wait_seconds_rank0"] = wait;
+    report.values()["light"] = {{"terms", lights.size()}, {"method", "sweep"},
+                                {"pipeline_wait_seconds_rank0", wait}};
     return lt;
 }
 
 double exact_tau_rho(const std::vector<double>& rho, const Int3& n, double h, const Vec3& w, int i,
-                     int j, int k) {
+                     int j, int k, std::array<bool, 3> periodic) {
     // March from the cell centre along -w through the cell grid (units of cells).
     const Vec3 dir = -w / norm(w);
     double pos[3] = {i + 0.5, j + 0.5, k + 0.5};
@@ -144,7 +174,10 @@ double exact_tau_rho(const std::vector<double>& rho, const Int3& n, double h, co
         t = tmax[a];
         cell[a] += step[a];
         tmax[a] += tdelta[a];
-        if (cell[a] < 0 || cell[a] >= n[a]) break;
+        if (cell[a] < 0 || cell[a] >= n[a]) {
+            if (!periodic[a]) break;
+            cell[a] = (cell[a] + n[a]) % n[a];
+        }
     }
     return tau;
 }

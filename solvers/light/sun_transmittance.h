@@ -14,6 +14,7 @@
 // against a brute-force ray march). Cost: O(cells) per light, ~10 flops per cell.
 #pragma once
 
+#include <array>
 #include <vector>
 
 #include "solvers/sweep/sweep.h"
@@ -28,14 +29,17 @@ namespace nimbus {
 // Collective over d.comm(). Requires slabs along z (process grid 1 x 1 x P). With periodic x/y
 // the segment always starts from the upwind z layer (any non-horizontal light). m.rho must have its ghost
 // layer exchanged. Times "light" (and "light/sweep") into report.
+// method exact: long characteristics instead (see LightSpec); any decomposition; replicates
+// the density on every rank.
 LightTransport compute_light_transport(const Decomposition& d, const Medium& m,
                                        const std::vector<DirectionalLight>& lights, Report& report,
-                                       const sweep::SweepOptions& opt = {});
+                                       const sweep::SweepOptions& opt = {},
+                                       LightSpec::Method method = LightSpec::Method::sweep);
 
-// Brute force reference: exact ∫ rho ds from the centre of global cell (i, j, k) back to the
-// domain boundary against w, by a 3-D DDA over a full density array rho_global [z][y][x].
-// For tests and verification only (O(n) per cell).
+// Exact ∫ rho ds from the centre of global cell (i, j, k) back to the domain boundary against w,
+// by a 3-D DDA over a full density array rho_global [z][y][x] (periodic axes wrap; the light
+// must then not be parallel to them). O(n) per cell: the exact method and the tests' reference.
 double exact_tau_rho(const std::vector<double>& rho_global, const Int3& n, double h, const Vec3& w,
-                     int i, int j, int k);
+                     int i, int j, int k, std::array<bool, 3> periodic = {false, false, false});
 
 }  // namespace nimbus

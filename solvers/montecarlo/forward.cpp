@@ -8,6 +8,7 @@
 #include <numeric>
 
 #include "solvers/montecarlo/empty_space.h"
+#include "solvers/montecarlo/grid_walk.h"
 #include "solvers/montecarlo/photon.h"
 #include "src/core/error.h"
 #include "src/core/halo.h"
@@ -62,12 +63,40 @@ std::vector<double> replicate_density(const Decomposition& d, const Field<double
 
 std::vector<std::int64_t> photons_per_light(const std::vector<double>& power, std::int64_t total,
                                             int batches) {
-    const double sum = std::accumulate(power.begin(), power.end(), 0.0);
     std::vector<std::int64_t> n(power.size(), 0);
-    if (sum <= 0) return n;
+    std::vector<bool> free(power.size(), false);  // not (yet) held at the minimum
+    for (size_t l = 0; l < power.size(); ++l) free[l] = power[l] > 0;
+    // Lights whose share falls below the minimum get exactly `batches`; the rest share what is
+    // left in proportion to their power (repeat until no share falls below the minimum).
+    for (;;) {
+        double sum = 0.0;
+        std::int64_t left = total;
+        for (size_t l = 0; l < power.size(); ++l) {
+            if (free[l]) sum += power[l];
+            else if (power[l] > 0) left -= batches;
+        }
+        if (sum <= 0) break;
+        bool changed = false;
+        for (size_t l = 0; l < power.size(); ++l)
+            if (free[l] && static_cast<double>(left) * power[l] / sum < batches) free[l] = false, changed = true;
+        if (changed) continue;
+        // Largest remainder: floor of each share, the leftover photons one each to the largest
+        // fractional parts (ties to the lower index), so the counts sum to `total` exactly.
+        std::vector<std::pair<double, size_t>> rem;
+        std::int64_t assigned = 0;
+        for (size_t l = 0; l < power.size(); ++l) {
+            if (!free[l]) continue;
+            const double share = static_cast<double>(left) * power[l] / sum;
+            n[l] = static_cast<std::int64_t>(std::floor(share));
+            assigned += n[l];
+            rem.emplace_back(share - static_cast<double>(n[l]), l);
+        }
+        std::stable_sort(rem.begin(), rem.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+        for (size_t i = 0; assigned < left; i = (i + 1) % rem.size(), ++assigned) ++n[rem[i].second];
+        break;
+    }
     for (size_t l = 0; l < power.size(); ++l)
-        if (power[l] > 0)
-            n[l] = std::max<std::int64_t>(batches, std::llround(static_cast<double>(total) * power[l] / sum));
+        if (power[l] > 0 && !free[l]) n[l] = batches;
     return n;
 }
 
@@ -136,33 +165,33 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     std::vector<Counters> batch_counters(static_cast<size_t>(B) * nb, Counters{});  // [batch][band]
     std::int64_t my_photons = 0, my_collisions = 0;
 
-    std::vector<std::vector<float>> kappa(groups.size());
-    std::vector<std::vector<std::uint8_t>> skip(groups.size());
-    for (size_t gi = 0; gi < groups.size(); ++gi) {
-        kappa[gi].resize(static_cast<size_t>(cells));
-        for (std::int64_t c = 0; c < cells; ++c)
-            kappa[gi][static_cast<size_t>(c)] = static_cast<float>(rho[static_cast<size_t>(c)] * groups[gi].optics.sigma_t * h);
-        skip[gi] = empty_space_distance(n, kappa[gi]);
+    std::vector<std::vector<Voxel>> voxels(groups.size());
+    {
+        std::vector<float> kappa(static_cast<size_t>(cells));
+        for (size_t gi = 0; gi < groups.size(); ++gi) {
+            for (std::int64_t c = 0; c < cells; ++c)
+                kappa[static_cast<size_t>(c)] = static_cast<float>(rho[static_cast<size_t>(c)] * groups[gi].optics.sigma_t * h);
+            voxels[gi] = make_voxels(n, kappa);
+        }
     }
     // Batch tallies, [cell][band in group], reused across batches: only the cells a batch
-    // touched (listed via a stamp per cell) are folded into the sums and zeroed again, so a
-    // batch costs O(cells touched), not O(grid).
+    // touched are folded into the sums and zeroed again, so a batch costs O(cells touched),
+    // not O(grid). A cell is listed when its tally of the light's strongest band is still 0
+    // (every tallied segment adds a positive amount there; a repeated entry folds 0, harmlessly).
     size_t max_group = 1;
     for (const OpticsGroup& G : groups) max_group = std::max(max_group, G.bands.size());
     std::vector<double> tally(static_cast<size_t>(cells) * max_group, 0.0), rtally;
     if (settings.tally_reduced) rtally.assign(tally.size(), 0.0);
-    std::vector<std::uint32_t> stamp(static_cast<size_t>(cells), 0u);
     std::vector<std::int64_t> touched;
     touched.reserve(static_cast<size_t>(std::min<std::int64_t>(cells, 1 << 20)));
-    std::uint32_t current = 0;
+    const double t_setup = wall_time();
 
     auto run_batch = [&](int batch) {
         for (size_t gi = 0; gi < groups.size(); ++gi) {
             const OpticsGroup& G = groups[gi];
             const int nbg = static_cast<int>(G.bands.size());
-            ++current;
             touched.clear();
-            const GridView grid{n, periodic, kappa[gi].data(), skip[gi].data()};
+            const GridView grid{n, periodic, voxels[gi].data()};
             const PhotonOptics po{G.optics.albedo, G.optics.g, opt.roulette_weight};
             for (size_t l = 0; l < nl; ++l) {
                 if (n_light[l] == 0) continue;
@@ -171,41 +200,34 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                 // Photon power per band (W) in this batch's estimate, and the fluence scale
                 // P len(m) / V = P len(cells) / h².
                 double P[64], scale[64];
+                int strongest = 0;
                 for (int q = 0; q < nbg; ++q) {
                     P[q] = lights[l].E0[static_cast<size_t>(G.bands[static_cast<size_t>(q)])] * area[l] /
                            static_cast<double>(hi - lo);
                     scale[q] = P[q] / (h * h);
+                    if (scale[q] > scale[strongest]) strongest = q;
                 }
                 PathTally pt;
                 double* t = tally.data();
                 double* rt = rtally.data();
-                auto touch = [&](std::int64_t idx) {
-                    if (stamp[static_cast<size_t>(idx)] != current) {
-                        stamp[static_cast<size_t>(idx)] = current;
-                        touched.push_back(idx);
-                    }
+                auto add = [&](double* c, std::int64_t idx, double len) {
+                    if (c[strongest] == 0.0) touched.push_back(idx);
+                    for (int q = 0; q < nbg; ++q) c[q] += len * scale[q];
                 };
-                auto diffuse = [&](std::int64_t idx, double wl) {
-                    touch(idx);
-                    double* c = t + idx * nbg;
-                    for (int q = 0; q < nbg; ++q) c[q] += wl * scale[q];
-                };
+                auto diffuse = [&](std::int64_t idx, double wl) { add(t + idx * nbg, idx, wl); };
                 for (std::int64_t p = lo; p < hi; ++p) {
                     PathRng rng(opt.seed, static_cast<std::uint32_t>(l), static_cast<std::uint64_t>(p));
                     PathState s;
                     s.d = lights[l].w;
                     entry[l].sample(rng, s);
                     if (settings.tally_reduced) {
-                        trace_photon(grid, po, rng, s, pt, diffuse, [&](std::int64_t idx, double len) {
-                            touch(idx);
-                            double* c = rt + idx * nbg;
-                            for (int q = 0; q < nbg; ++q) c[q] += len * scale[q];
-                        });
+                        trace_photon(grid, po, rng, s, pt, diffuse,
+                                     [&](std::int64_t idx, double len) { add(rt + idx * nbg, idx, len); });
                     } else {
                         trace_photon(grid, po, rng, s, pt, diffuse, [](std::int64_t, double) {});
                     }
                 }
-                my_photons += hi - lo;
+                if (gi == 0) my_photons += hi - lo;  // a photon traced once per optics group
                 my_collisions += pt.collisions;
                 for (int q = 0; q < nbg; ++q) {
                     Counters& c = batch_counters[static_cast<size_t>(batch) * nb + G.bands[static_cast<size_t>(q)]];
@@ -277,6 +299,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
         if (stop) break;
     }
     progress.finish();
+    const double t_traced = wall_time();
     res.batches = done;
     std::int64_t counts[2] = {my_photons, my_collisions}, total[2] = {0, 0};
     MPI_Allreduce(counts, total, 2, MPI_INT64_T, MPI_SUM, d.comm());
@@ -301,13 +324,19 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                 done > 1 ? std::sqrt(std::max(0.0, m2 / K - m * m) / (K - 1)) : 0.0;
         }
 
-    // Reduce the per-cell sums to the owners of each box: pack by destination rank.
-    std::vector<int> recv_counts(static_cast<size_t>(P));
-    for (int r = 0; r < P; ++r) recv_counts[static_cast<size_t>(r)] = static_cast<int>(d.box_of(r).cells() * nb * nq);
-    std::vector<double> send;
-    send.reserve(static_cast<size_t>(cells * nb * nq));
+    // Reduce the per-cell sums to the owners of each box: pack by destination rank, only the
+    // cells with density (the others are never tallied; every rank knows the replicated rho).
+    auto has_density = [&](int i, int j, int k) { return rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] > 0; };
+    std::vector<int> recv_counts(static_cast<size_t>(P), 0);
     for (int r = 0; r < P; ++r)
         for_each_cell(d.box_of(r), [&](int i, int j, int k) {
+            if (has_density(i, j, k)) recv_counts[static_cast<size_t>(r)] += nb * nq;
+        });
+    std::vector<double> send;
+    send.reserve(static_cast<size_t>(std::accumulate(recv_counts.begin(), recv_counts.end(), std::int64_t{0})));
+    for (int r = 0; r < P; ++r)
+        for_each_cell(d.box_of(r), [&](int i, int j, int k) {
+            if (!has_density(i, j, k)) return;
             const size_t c = ((static_cast<size_t>(k) * n[1] + j) * n[0] + i) * nb;
             for (int q = 0; q < nb; ++q) {
                 send.push_back(sum[c + q]);
@@ -335,6 +364,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     }
     size_t pos = 0;
     for_each_cell(d.local(), [&](int i, int j, int k) {
+        if (!has_density(i, j, k)) return;
         for (int q = 0; q < nb; ++q) {
             mean_and_stderr(recv[pos], recv[pos + 1], res.fluence[static_cast<size_t>(q)](i, j, k),
                             res.fluence_stderr[static_cast<size_t>(q)](i, j, k));
@@ -348,7 +378,14 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     });
     for (auto* v : {&res.fluence, &res.fluence_stderr, &res.reduced, &res.reduced_stderr})
         for (Field<double>& f : *v) exchange_halo(f, d);
-    res.seconds = wall_time() - t_start;
+    // Phase times, the maximum over the ranks (so that every rank reports the same values).
+    const double t_end = wall_time();
+    double times[4] = {t_end - t_start, t_setup - t_start, t_traced - t_setup, t_end - t_traced}, tmax[4];
+    MPI_Allreduce(times, tmax, 4, MPI_DOUBLE, MPI_MAX, d.comm());
+    res.seconds = tmax[0];
+    res.setup_seconds = tmax[1];
+    res.trace_seconds = tmax[2];
+    res.reduce_seconds = tmax[3];
     return res;
 }
 

@@ -7,7 +7,8 @@
 // same result for any rank count (up to the round-off of the final sums). Batches run in
 // rounds; a round's batches go to the ranks in contiguous blocks; between rounds the stop
 // criteria (photon count, time budget, target relative error of the total diffuse power) are
-// decided collectively. Tallies are reduced to the owner of each box (MPI_Reduce_scatter).
+// decided collectively. Tallies are reduced to the owner of each box (MPI_Reduce_scatter),
+// only over cells with density (the fluence of empty cells is 0 by contract).
 //
 // Each batch is a full estimate (its photons carry power E0 A_projected / n_batch); the result
 // is the mean over the completed batches and the standard error is that of the batch means.
@@ -51,7 +52,10 @@ struct ForwardResult {
     std::vector<Counters> counters, counters_stderr;
     std::int64_t photons = 0, collisions = 0;  // totals over all ranks
     int batches = 0;                           // batches completed
-    double seconds = 0.0;                      // wall time of the tracing rounds
+    double seconds = 0.0;                      // wall time of trace_forward (max over ranks)
+    double setup_seconds = 0.0;                // (all four: max over ranks) replication, voxel grid, empty space, buffers
+    double trace_seconds = 0.0;                // the rounds of batches (incl. per-round reductions)
+    double reduce_seconds = 0.0;               // counters, sparse tally reduction, halo exchange
     double replicated_gb = 0.0;                // per-rank memory of the replicated arrays
     double rel_error = 0.0;                    // relative standard error of diffuse_volume (all bands)
     std::string stop_reason;                   // "photons", "time_budget", "target_rel_error"
@@ -71,7 +75,8 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
 std::vector<double> replicate_density(const Decomposition& d, const Field<double>& rho);
 
 // Photon count of each light: proportional to its power summed over bands (E0 A_projected),
-// at least opt.batches per light that carries power. Same on every rank.
+// at least `batches` per light that carries power, rounded by largest remainder so that the
+// counts sum to `total` exactly (unless the minimum alone exceeds it). Same on every rank.
 std::vector<std::int64_t> photons_per_light(const std::vector<double>& power, std::int64_t total,
                                             int batches);
 

@@ -38,9 +38,11 @@ public:
         out.flux.clear();
 
         const double cores = ctx.decomp.size();
-        const double secs = std::max(r.seconds, 1e-9);
+        // Throughput of the tracing rounds; the fixed costs (setup, reduction) are reported apart.
+        const double secs = std::max(r.trace_seconds, 1e-9);
         const double paths_per_s = static_cast<double>(r.photons) / secs / cores;
         const double coll_per_s = static_cast<double>(r.collisions) / secs / cores;
+        const double coll_per_s_all = static_cast<double>(r.collisions) / std::max(r.seconds, 1e-9) / cores;
         nlohmann::json energy = nlohmann::json::array();
         for (size_t b = 0; b < r.counters.size(); ++b) {
             const mc::Counters& c = r.counters[b];
@@ -60,16 +62,22 @@ public:
             {"batches", r.batches},
             {"stop_reason", r.stop_reason},
             {"seconds", r.seconds},
+            {"setup_seconds", r.setup_seconds},
+            {"trace_seconds", r.trace_seconds},
+            {"reduce_seconds", r.reduce_seconds},
+            {"collisions_per_s_per_core_overall", coll_per_s_all},
             {"paths_per_s_per_core", paths_per_s},
             {"collisions_per_s_per_core", coll_per_s},
             {"rel_error_total_diffuse", r.rel_error},
             {"replicated_memory_gb", r.replicated_gb},
             {"energy", energy}};
-        log::info("montecarlo: {} photons, {} collisions in {:.2f} s ({} batches, stop: {})", r.photons,
-                  r.collisions, r.seconds, r.batches, r.stop_reason);
-        log::info("montecarlo: {:.3g} paths/s/core, {:.3g} collisions/s/core, relative error of the "
-                  "total diffuse power {:.2e}, replicated grid {:.3f} GB per rank",
-                  paths_per_s, coll_per_s, r.rel_error, r.replicated_gb);
+        log::info("montecarlo: {} photons, {} collisions in {:.2f} s ({} batches, stop: {}): setup {:.3f} s, "
+                  "tracing {:.3f} s, reduction {:.3f} s",
+                  r.photons, r.collisions, r.seconds, r.batches, r.stop_reason, r.setup_seconds, r.trace_seconds,
+                  r.reduce_seconds);
+        log::info("montecarlo: tracing {:.3g} paths/s/core, {:.3g} collisions/s/core ({:.3g} over the whole "
+                  "solve), relative error of the total diffuse power {:.2e}, replicated grid {:.3f} GB per rank",
+                  paths_per_s, coll_per_s, coll_per_s_all, r.rel_error, r.replicated_gb);
     }
 
     bool renders_image() const override { return opt_.image; }

@@ -23,7 +23,7 @@ namespace {
 double optical_depth(const GridView& g, PathState s) {
     double tau = 0.0;
     walk_optical_depth(g, s, std::numeric_limits<double>::infinity(),
-                       [&](std::int64_t idx, double len) { tau += g.kappa[idx] * len; });
+                       [&](std::int64_t idx, double len) { tau += g.voxel[idx].kappa * len; });
     return tau;
 }
 
@@ -67,13 +67,11 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
     if (ground && d.rank() == 0) log::warn("montecarlo image: background 'ground' is not modelled, rendered black");
 
     const std::vector<double> rho = replicate_density(d, m.rho);
-    std::vector<std::vector<float>> kappa(static_cast<size_t>(nb));
-    std::vector<std::vector<std::uint8_t>> skip(static_cast<size_t>(nb));
+    std::vector<std::vector<Voxel>> voxels(static_cast<size_t>(nb));
     for (int b = 0; b < nb; ++b) {
-        auto& k = kappa[static_cast<size_t>(b)];
-        k.resize(rho.size());
+        std::vector<float> k(rho.size());
         for (size_t c = 0; c < rho.size(); ++c) k[c] = static_cast<float>(rho[c] * m.bands[static_cast<size_t>(b)].sigma_t * m.grid.h);
-        skip[static_cast<size_t>(b)] = empty_space_distance(n, k);
+        voxels[static_cast<size_t>(b)] = make_voxels(n, k);
     }
 
     // Per pixel and band: sum and sum of squares of the sample radiance; per pixel: alpha.
@@ -90,14 +88,14 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
             // alpha once per pixel, on the rank that owns its first sample
             PathState s;
             const double T = enter_domain(m.grid, cam.position(), cam.pixel_direction(px, py), s)
-                                 ? std::exp(-optical_depth({n, periodic, kappa[0].data(), skip[0].data()}, s))
+                                 ? std::exp(-optical_depth({n, periodic, voxels[0].data()}, s))
                                  : 1.0;
             alpha[pix] = 1.0 - T;
         }
         last_pixel = pix;
         for (int b = 0; b < nb; ++b) {
             PathRng rng(opt.seed, 0x80000000u + static_cast<std::uint32_t>(b), static_cast<std::uint64_t>(si));
-            const GridView g{n, periodic, kappa[static_cast<size_t>(b)].data(), skip[static_cast<size_t>(b)].data()};
+            const GridView g{n, periodic, voxels[static_cast<size_t>(b)].data()};
             const BandOptics& o = m.bands[static_cast<size_t>(b)];
             const Vec3 dir = cam.direction(px + rng.uniform(), py + rng.uniform());
             double L = 0.0;

@@ -22,15 +22,16 @@ namespace {
 
 struct CompareArgs {
     std::string a, b, image_a, image_b;
+    std::string field = "fluence_diffuse";
     bool json = false;
 };
 
 nlohmann::json compare_runs(const CompareArgs& args) {
-    const std::string field = "fields/fluence_diffuse", err = "fields/fluence_diffuse_stderr";
+    const std::string field = "fields/" + args.field, err = field + "_stderr";
     const std::vector<std::string> bands = list_group(args.b, field);
     if (bands.empty()) throw Error(fmt::format("'{}' has no {} datasets", args.b, field));
     const FieldData density = read_field(args.b, "fields/density");
-    nlohmann::json out = {{"a", args.a}, {"b", args.b}, {"bands", nlohmann::json::array()}};
+    nlohmann::json out = {{"a", args.a}, {"b", args.b}, {"field", args.field}, {"bands", nlohmann::json::array()}};
     for (const std::string& band : bands) {
         const std::string path = field + "/" + band;
         if (!has_dataset(args.a, path)) throw Error(fmt::format("'{}' has no {} (the reference has)", args.a, path));
@@ -60,7 +61,8 @@ nlohmann::json compare_runs(const CompareArgs& args) {
 }
 
 void print_table(const nlohmann::json& r) {
-    std::printf("%s", fmt::format("{} against reference {}\n", r["a"].get<std::string>(), r["b"].get<std::string>()).c_str());
+    std::printf("%s", fmt::format("{} of {} against reference {}\n", r["field"].get<std::string>(),
+                                  r["a"].get<std::string>(), r["b"].get<std::string>()).c_str());
     std::printf("%s", fmt::format("{:<10} {:>12} {:>12} {:>10} {:>10}\n", "band", "rel L2", "max rel", "RMS z", "cells").c_str());
     for (const auto& b : r["bands"])
         std::printf("%s", fmt::format("{:<10} {:>12.4e} {:>12.4e} {:>10} {:>10}\n", b["band"].get<std::string>(),
@@ -81,6 +83,8 @@ void add_compare_command(CLI::App& app) {
     cmd->add_option("a", args->a, "the run to assess (nimbus.h5)")->required()->check(CLI::ExistingFile);
     cmd->add_option("b", args->b, "the reference run (nimbus.h5), e.g. Monte Carlo")->required()->check(CLI::ExistingFile);
     cmd->add_flag("--json", args->json, "print JSON instead of a table");
+    cmd->add_option("--field", args->field, "per-band field to compare (fluence_diffuse, fluence_reduced, "
+                                             "transmittance_sun)")->capture_default_str();
     cmd->add_option("--image-a", args->image_a, "image of run A (EXR)")->check(CLI::ExistingFile);
     cmd->add_option("--image-b", args->image_b, "image of the reference (EXR)")->check(CLI::ExistingFile);
     cmd->callback([args] {

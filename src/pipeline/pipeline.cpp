@@ -155,7 +155,7 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
         check_density(medium.rho, d);
     }
 
-    const LightTransport light = compute_light_transport(d, medium, make_lights(scene), report);
+    const LightTransport light = compute_light_transport(d, medium, make_lights(scene), report, {}, scene.light.method);
     DiffuseSolution diffuse;
     const SolveContext ctx{scene, d, medium, light, report};
     {

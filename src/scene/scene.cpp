@@ -78,6 +78,10 @@ const char* to_string(RenderMode m) {
     return "?";
 }
 
+const char* to_string(LightSpec::Method m) {
+    return m == LightSpec::Method::exact ? "exact" : "sweep";
+}
+
 const char* to_string(MediumSpec::Kind k) {
     switch (k) {
         case MediumSpec::Kind::cumulus: return "cumulus";

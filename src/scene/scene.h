@@ -70,6 +70,17 @@ struct SkySpec {
     int directions = 8;            // number of direction bins over the upper hemisphere
 };
 
+// How the light pass computes tau_rho (solvers/light/sun_transmittance.h).
+struct LightSpec {
+    enum class Method {
+        sweep,  // short characteristics on the sweep engine: O(cells), exact for axis-aligned
+                // light and homogeneous or layered media, interpolation error otherwise
+        exact,  // long characteristics: a ray per cell centre through the piecewise-constant
+                // cells, exact; the density is replicated on every rank, O(cells x n)
+    };
+    Method method = Method::sweep;
+};
+
 struct CameraSpec {
     Vec3 position{0.5, -1.6, 0.45};   // grid fractions of the domain extent (unit: domain)
     Vec3 look_at{0.5, 0.5, 0.45};
@@ -126,6 +137,7 @@ struct Scene {
     std::vector<BandOptics> bands{BandOptics{}};
     SunSpec sun;
     SkySpec sky;
+    LightSpec light;
     CameraSpec camera;
     BackgroundSpec background;
     RenderSpec render;
@@ -140,5 +152,6 @@ struct Scene {
 
 const char* to_string(RenderMode m);
 const char* to_string(MediumSpec::Kind k);
+const char* to_string(LightSpec::Method m);
 
 }  // namespace nimbus

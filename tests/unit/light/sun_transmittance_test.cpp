@@ -134,3 +134,50 @@ TEST(SunTransmittance, OneRankEqualsTwoRanks) {
 
 }  // namespace
 }  // namespace nimbus
+
+namespace nimbus {
+namespace {
+
+TEST(ExactLight, BeerLambertInAPeriodicSlabAtLowSun) {
+    // The ray wraps around periodic x/y many times before it leaves through the top.
+    const Int3 n{5, 4, 12};
+    const double h = 0.5, rho = 1.5;
+    LitMedium s = make(MPI_COMM_WORLD, n, h, [&](int, int, int) { return rho; }, {true, true, false});
+    const Vec3 w = normalized(Vec3{3.0, -2.0, -1.0});
+    Report r;
+    const auto lt = compute_light_transport(s.d, s.m, {{"sun", w, {1.0}}}, r, {}, LightSpec::Method::exact);
+    for_each_cell(s.d.local(), [&](int i, int j, int k) {
+        const double want = rho * (n[2] - (k + 0.5)) * h / std::abs(w.z);
+        ASSERT_NEAR(lt.tau_rho[0](i, j, k), want, 1e-11 * want);
+    });
+}
+
+TEST(ExactLight, MatchesTheSweepForAxisAlignedLightAndWorksOnAnyProcessGrid) {
+    const Int3 n{8, 6, 10};
+    auto rho_of = [](int i, int j, int k) { return std::fmod(0.37 * i + 1.3 * j * j + 0.71 * k, 2.0); };
+    LitMedium slabs = make(MPI_COMM_WORLD, n, 1.0, rho_of);
+    LitMedium xsplit{Decomposition(MPI_COMM_WORLD, n, {test::world_size(), 1, 1}), {}};
+    xsplit.m.grid = slabs.m.grid;
+    xsplit.m.bands = slabs.m.bands;
+    xsplit.m.rho = Field<double>(xsplit.d.local(), 1, 1, 0.0);
+    for_each_cell(xsplit.d.local(), [&](int i, int j, int k) { xsplit.m.rho(i, j, k) = rho_of(i, j, k); });
+    const std::vector<DirectionalLight> lights{{"down", {0, 0, -1}, {1.0}}, {"east", {1, 0, 0}, {1.0}}};
+    Report r;
+    const auto sweep = compute_light_transport(slabs.d, slabs.m, lights, r);
+    const auto exact = compute_light_transport(slabs.d, slabs.m, lights, r, {}, LightSpec::Method::exact);
+    const auto exact_x = compute_light_transport(xsplit.d, xsplit.m, lights, r, {}, LightSpec::Method::exact);
+    for (size_t l = 0; l < lights.size(); ++l) {
+        for_each_cell(slabs.d.local(), [&](int i, int j, int k) {
+            ASSERT_NEAR(exact.tau_rho[l](i, j, k), sweep.tau_rho[l](i, j, k), 1e-12);
+        });
+        for_each_cell(xsplit.d.local(), [&](int i, int j, int k) {
+            double col = 0;
+            if (l == 0) { col = 0.5 * rho_of(i, j, k); for (int q = k + 1; q < n[2]; ++q) col += rho_of(i, j, q); }
+            else { col = 0.5 * rho_of(i, j, k); for (int q = i - 1; q >= 0; --q) col += rho_of(q, j, k); }
+            ASSERT_NEAR(exact_x.tau_rho[l](i, j, k), col, 1e-12);
+        });
+    }
+}
+
+}  // namespace
+}  // namespace nimbus
