@@ -256,13 +256,14 @@ void read_model(const TableReader& t, ModelSpec& m) {
     mc.read("image", m.montecarlo.image);
     mc.read("samples_per_pixel", m.montecarlo.samples_per_pixel);
     const TableReader df = t.table("diffusion", {"solver", "tolerance", "max_iterations", "margin",
-                                                 "max_transport_length", "clamp_negative"});
+                                                 "max_transport_length", "clamp_negative", "delta_scaling"});
     df.read("solver", m.diffusion.solver);
     df.read("tolerance", m.diffusion.tolerance);
     df.read("max_iterations", m.diffusion.max_iterations);
     df.read("margin", m.diffusion.margin);
     df.read("max_transport_length", m.diffusion.max_transport_length);
     df.read("clamp_negative", m.diffusion.clamp_negative);
+    df.read("delta_scaling", m.diffusion.delta_scaling);
 }
 
 Scene convert(const toml::value& tree, const std::string& source, const fs::path& base_dir) {

@@ -164,6 +164,7 @@ std::string scene_to_toml(const Scene& s) {
     o << "margin = " << df.margin << "\n";
     o << "max_transport_length = " << num(df.max_transport_length) << "\n";
     o << "clamp_negative = " << boolean(df.clamp_negative) << "\n";
+    o << "delta_scaling = " << boolean(df.delta_scaling) << "\n";
 
     o << "\n[output]\n";
     o << "dir = " << str(s.output.dir) << "\n";

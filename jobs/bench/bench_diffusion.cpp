@@ -46,8 +46,7 @@ struct Bare {
 // hypre PFMG-PCG on the model's matrix, nothing else: the floor.
 Bare bare_pfmg_pcg(const Decomposition& d, const diffusion::DiffusionProblem& p) {
     const auto region = diffusion::find_solve_region(d, p, DiffusionOptions{}.margin);
-    const Int3 s = region.box.shape();
-    const diffusion::Assembler as(p, 1.0 / (p.h * std::max({s[0], s[1], s[2]})));  // as the model
+    const diffusion::Assembler as(p, 1.0 / diffusion::default_transport_length(region, p));  // as the model
     const Box box = d.local().intersect(region.box);
     diffusion::hypre::Grid grid(d.comm(), box, {0, 0, 0});
     diffusion::hypre::SymmetricStencil7 stencil;

@@ -21,7 +21,8 @@ public:
                 {"max_iterations", opt_.max_iterations},
                 {"margin", opt_.margin},
                 {"max_transport_length", opt_.max_transport_length},
-                {"clamp_negative", opt_.clamp_negative}};
+                {"clamp_negative", opt_.clamp_negative},
+                {"delta_scaling", opt_.delta_scaling}};
     }
 
     void solve(const SolveContext& ctx, DiffuseSolution& out) override {
@@ -40,7 +41,7 @@ public:
             diffusion::DiffusionProblem p;
             {
                 ScopedTimer t(ctx.report, "sources");
-                p = diffusion::make_problem(d, m, ctx.light, group);
+                p = diffusion::make_problem(d, m, ctx.light, group, opt_.delta_scaling);
             }
             const auto res = diffusion::solve_diffusion(d, p, opt_, ctx.report);
             solves += static_cast<int>(group.rhs_band.size());
@@ -50,9 +51,13 @@ public:
                 const auto& U = res.U[static_cast<size_t>(use.rhs)];
                 const auto& F = res.flux[static_cast<size_t>(use.rhs)];
                 const double s = use.scale;
+                // The delta-scaled solve leaves the forward-peak light in T' (delta_scaling.h).
                 for_each_cell(fl.allocated(), [&](int i, int j, int k) {
-                    fl(i, j, k) = 4.0 * std::numbers::pi * s * U(i, j, k);
-                    for (int c = 0; c < 3; ++c) fx(i, j, k, c) = s * F(i, j, k, c);
+                    Vec3 peak_flux;
+                    const double peak = diffusion::forward_peak_fluence(
+                        ctx.light, group.optics, use.band, opt_.delta_scaling, i, j, k, &peak_flux);
+                    fl(i, j, k) = 4.0 * std::numbers::pi * s * U(i, j, k) + peak;
+                    for (int c = 0; c < 3; ++c) fx(i, j, k, c) = s * F(i, j, k, c) + peak_flux[c];
                 });
             }
         }

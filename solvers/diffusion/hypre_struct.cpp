@@ -22,8 +22,13 @@ void configure_pfmg(HYPRE_StructSolver s, bool as_precond, bool periodic) {
     // on periodic grids where it broke PCG (no convergence in 200 iterations on a 4x4
     // periodic slab). Stand-alone: weighted Jacobi; red/black diverged (NaN) on a cloud.
     HYPRE_StructPFMGSetRelaxType(s, (as_precond && !periodic) ? 2 : 1);
-    HYPRE_StructPFMGSetNumPreRelax(s, 1);
-    HYPRE_StructPFMGSetNumPostRelax(s, 1);
+    // Two pre- and two post-sweeps on EVERY level (skip_relax = 0; hypre's default skips
+    // relaxation on some levels, which assumes a near-constant coefficient). On the cumulus
+    // (coefficient contrast ~1e3, near-empty cells at the edge) this took PFMG-PCG from 26 to
+    // 10 iterations at 128³ and halved the solve time (jobs/bench_diffusion.sh, README).
+    HYPRE_StructPFMGSetNumPreRelax(s, 2);
+    HYPRE_StructPFMGSetNumPostRelax(s, 2);
+    HYPRE_StructPFMGSetSkipRelax(s, 0);
     HYPRE_StructPFMGSetRelChange(s, 0);
     if (as_precond) {
         HYPRE_StructPFMGSetMaxIter(s, 1);
@@ -194,3 +199,4 @@ double Solver::final_relative_residual() const {
 }
 
 }  // namespace nimbus::diffusion::hypre
+

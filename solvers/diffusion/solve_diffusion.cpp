@@ -29,10 +29,7 @@ DiffusionResult solve_diffusion(const Decomposition& d, const DiffusionProblem& 
 
     // Cap of the transport mean free path (diffusion_kernel.h): the option, or the region size.
     double ell = opt.max_transport_length;
-    if (ell <= 0.0) {
-        const Int3 s = res.region.box.shape();
-        ell = p.h * std::max({s[0], s[1], s[2]});
-    }
+    if (ell <= 0.0) ell = default_transport_length(res.region, p);
     rec["kappa_tr_floor"] = 1.0 / ell;
     const Assembler assembler(p, 1.0 / ell);
     LinearSolveOutput lin = opt.solver == "petsc"

@@ -1,5 +1,6 @@
 #include "solvers/diffusion/solve_region.h"
 
+#include <algorithm>
 #include <limits>
 
 namespace nimbus::diffusion {
@@ -30,6 +31,14 @@ SolveRegion find_solve_region(const Decomposition& d, const DiffusionProblem& p,
         }
     }
     return r;
+}
+
+double default_transport_length(const SolveRegion& r, const DiffusionProblem& p) {
+    const Int3 s = r.box.shape();
+    double ell = std::numeric_limits<double>::infinity();
+    for (int a = 0; a < 3; ++a)
+        if (!p.periodic[a]) ell = std::min(ell, 0.5 * p.h * s[a]);
+    return ell;
 }
 
 }  // namespace nimbus::diffusion

@@ -12,4 +12,9 @@ namespace nimbus::diffusion {
 // Collective over d.comm() (two MPI_Allreduce). Empty box when no cell is full anywhere.
 SolveRegion find_solve_region(const Decomposition& d, const DiffusionProblem& p, int margin);
 
+// Default cap on the transport mean free path (m): half the smallest extent of the region
+// over the non-periodic axes, the largest distance from a point of the region to its boundary
+// (diffusion_kernel.h); +inf (no cap) when every axis is periodic.
+double default_transport_length(const SolveRegion& r, const DiffusionProblem& p);
+
 }  // namespace nimbus::diffusion

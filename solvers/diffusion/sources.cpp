@@ -1,12 +1,16 @@
 #include "solvers/diffusion/sources.h"
 
+#include <numbers>
+
+#include "solvers/diffusion/delta_scaling.h"
 #include "src/core/halo.h"
 
 namespace nimbus::diffusion {
 
 DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const LightTransport& light,
-                              const BandGroup& group) {
+                              const BandGroup& group, bool delta_scaling) {
     const BandOptics& o = group.optics;
+    const DeltaScaledOptics s = delta_scale(o.sigma_t, o.albedo, o.g, delta_scaling);
     DiffusionProblem p;
     p.h = m.grid.h;
     p.n = m.grid.n;
@@ -21,19 +25,47 @@ DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const Lig
     for_each_cell(d.local(), [&](int i, int j, int k) {
         p.sigma_a(i, j, k) = m.rho(i, j, k) * o.sigma_t * (1.0 - o.albedo);
     });
+    // Per unit density and unit E0 T': Q0' = q0, Q1' = g' q0 w, G = g' q0 w / sigma_tr.
+    const double q0 = o.sigma_t * o.albedo * (1.0 - s.f) / (4.0 * std::numbers::pi);
     for (int b : group.rhs_band) {
         Field<double> Q0(d.local(), 0, 1, 0.0), G(d.local(), 1, 3, 0.0);
         for_each_cell(d.local(), [&](int i, int j, int k) {
             if (p.kappa_tr(i, j, k) <= 0.0) return;
-            Q0(i, j, k) = light.Q0(m, b, i, j, k);
-            const Vec3 q1 = light.Q1(m, b, i, j, k);
-            for (int c = 0; c < 3; ++c) G(i, j, k, c) = q1[c] / p.kappa_tr(i, j, k);
+            double e = 0.0;
+            Vec3 ew;
+            for (size_t l = 0; l < light.lights.size(); ++l) {
+                const double et = band_value(light.lights[l].E0, b) *
+                                  light.transmittance(static_cast<int>(l), s.sigma_t, i, j, k);
+                e += et;
+                ew += light.lights[l].w * et;
+            }
+            Q0(i, j, k) = m.rho(i, j, k) * q0 * e;
+            for (int c = 0; c < 3; ++c) G(i, j, k, c) = s.g * q0 * ew[c] / sigma_tr;
         });
         exchange_halo(G, d);
         p.Q0.push_back(std::move(Q0));
         p.G.push_back(std::move(G));
     }
     return p;
+}
+
+double forward_peak_fluence(const LightTransport& light, const BandOptics& optics, int band,
+                            bool delta_scaling, int i, int j, int k, Vec3* flux) {
+    const DeltaScaledOptics s = delta_scale(optics.sigma_t, optics.albedo, optics.g, delta_scaling);
+    double e = 0.0;
+    Vec3 ew;
+    if (s.f > 0.0) {
+        for (size_t l = 0; l < light.lights.size(); ++l) {
+            const int li = static_cast<int>(l);
+            const double et = band_value(light.lights[l].E0, band) *
+                              (light.transmittance(li, s.sigma_t, i, j, k) -
+                               light.transmittance(li, optics.sigma_t, i, j, k));
+            e += et;
+            ew += light.lights[l].w * et;
+        }
+    }
+    if (flux) *flux = ew;
+    return e;
 }
 
 }  // namespace nimbus::diffusion

@@ -1,6 +1,11 @@
 // Builds the DiffusionProblem of one band group from the medium and the light pass
-// (DESIGN §1): kappa_tr = rho sigma_t (1 - a g), sigma_a = rho sigma_t (1 - a),
-// Q0 = LightTransport::Q0, G = LightTransport::Q1 / kappa_tr, for each right-hand side band.
+// (DESIGN §1), with the delta-Eddington optics of delta_scaling.h (plain P1 when
+// delta_scaling = false):
+//   kappa_tr = rho sigma_t (1 - a g),  sigma_a = rho sigma_t (1 - a)   (invariant under scaling)
+//   Q0' = (1/4π) Σ_lights rho sigma_t a (1 - f) E0 T',  T' = exp(-sigma_t (1 - a f) tau_rho)
+//   G = Q1'/kappa_tr,  Q1' = g' Σ_lights (1/4π) rho sigma_t a (1 - f) E0 T' w_light
+// for each right-hand side band. G is the first-scatter flux per 4π; it depends on the
+// density only through T' (rho cancels), so it is continuous across density jumps.
 // Collective over d.comm() (halo exchange of G).
 #pragma once
 
@@ -12,6 +17,12 @@
 namespace nimbus::diffusion {
 
 DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const LightTransport& light,
-                              const BandGroup& group);
+                              const BandGroup& group, bool delta_scaling = true);
+
+// The part of the diffuse fluence that the delta-Eddington scaling keeps in the reduced
+// incident field, Σ_lights E0[band] (T' - T) (W/m²), and its flux Σ E0 (T' - T) w_light, at
+// cell (i, j, k) of light's owned box + ghost layer. Zero when scaling is off. Not collective.
+double forward_peak_fluence(const LightTransport& light, const BandOptics& optics, int band,
+                            bool delta_scaling, int i, int j, int k, Vec3* flux = nullptr);
 
 }  // namespace nimbus::diffusion

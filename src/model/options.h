@@ -31,6 +31,7 @@ struct DiffusionOptions {
     double max_transport_length = 0;  // m, cap on 1/kappa_tr in D (0 = the solve region's size)
     bool clamp_negative = true;       // set negative P1 fluence (boundary layers lit by a strongly
                                       // forward-scattered source) to 0; counts are reported
+    bool delta_scaling = true;        // delta-Eddington optics for the P1 solve (solvers/diffusion)
     void validate() const;
 };
 
