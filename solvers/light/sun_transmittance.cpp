@@ -131,7 +131,34 @@ LightTransport compute_light_transport(const Decomposition& d, const Medium& m,
         const auto& rho = m.rho;
         sweep::SweepOptions sopt = opt;
         if (periodic_xy) sopt.tile_rows = n[1];  // a whole upwind layer is done before the next
+        // Without periodic wrapping every piece and tap is a fixed offset from the cell's index
+        // (rho and tau share the owned box and ghost width, hence the layout): flatten them.
+        constexpr int kMax = 8;
+        std::ptrdiff_t piece_off[kMax], tap_off[4];
+        double piece_len[kMax], tap_w[4];
+        const int npieces = static_cast<int>(st.pieces.size());
+        for (int q = 0; q < npieces && q < kMax; ++q) {
+            const auto& p = st.pieces[static_cast<size_t>(q)];
+            piece_off[q] = p.off[0] * tau.stride(0) + p.off[1] * tau.stride(1) + p.off[2] * tau.stride(2);
+            piece_len[q] = p.length;
+        }
+        for (int q = 0; q < 4; ++q) {
+            const auto& tp = st.taps[static_cast<size_t>(q)];
+            tap_off[q] = tp.off[0] * tau.stride(0) + tp.off[1] * tau.stride(1) + tp.off[2] * tau.stride(2);
+            tap_w[q] = tp.weight;
+        }
+        const double* rho_p = m.rho.data();
+        double* tau_p = tau.data();
+        const bool flat = !periodic_xy && npieces <= kMax && rho.allocated() == tau.allocated();
         auto kernel = [&](int i, int j, int k) {
+            if (flat) {
+                const std::ptrdiff_t c = tau.index(i, j, k);
+                double t = tap_w[0] * tau_p[c + tap_off[0]] + tap_w[1] * tau_p[c + tap_off[1]] +
+                           tap_w[2] * tau_p[c + tap_off[2]] + tap_w[3] * tau_p[c + tap_off[3]];
+                for (int q = 0; q < npieces; ++q) t += piece_len[q] * rho_p[c + piece_off[q]];
+                tau_p[c] = t;
+                return;
+            }
             double t = 0.0;
             for (const auto& p : st.pieces)
                 t += p.length * rho(wrap(i + p.off[0], 0), wrap(j + p.off[1], 1), k + p.off[2]);
