@@ -33,7 +33,7 @@ def run_nimbus(args, scene, sets, out_dir):
     cmd = ["mpiexec", "-n", str(args.ranks), "--oversubscribe", "--bind-to", "none", args.nimbus, "run", scene]
     for s in sets:
         cmd += ["--set", s]
-    cmd += ["--out", out_dir]
+    cmd += ["--set", "output.name=nimbus", "--out", out_dir]  # scenes may name their outputs
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
     print("+", " ".join(cmd), flush=True)
     start = time.monotonic()
