@@ -11,6 +11,7 @@
 #include "solvers/montecarlo/grid_walk.h"
 #include "solvers/montecarlo/photon.h"
 #include "src/core/error.h"
+#include "src/core/gather.h"
 #include "src/core/halo.h"
 #include "src/core/log.h"
 #include "src/core/progress.h"
@@ -40,25 +41,6 @@ std::vector<OpticsGroup> group_bands(const std::vector<BandOptics>& bands) {
 
 }  // namespace
 
-std::vector<double> replicate_density(const Decomposition& d, const Field<double>& rho) {
-    const Int3 n = d.global().hi;
-    const std::vector<double> mine = rho.owned_values();
-    std::vector<int> counts(static_cast<size_t>(d.size())), displs(static_cast<size_t>(d.size()));
-    for (int r = 0; r < d.size(); ++r) counts[static_cast<size_t>(r)] = static_cast<int>(d.box_of(r).cells());
-    std::exclusive_scan(counts.begin(), counts.end(), displs.begin(), 0);
-    std::vector<double> gathered(static_cast<size_t>(d.global().cells()));
-    MPI_Allgatherv(mine.data(), static_cast<int>(mine.size()), MPI_DOUBLE, gathered.data(),
-                   counts.data(), displs.data(), MPI_DOUBLE, d.comm());
-    std::vector<double> global(gathered.size());
-    for (int r = 0; r < d.size(); ++r) {
-        const Box b = d.box_of(r);
-        size_t pos = static_cast<size_t>(displs[static_cast<size_t>(r)]);
-        for_each_cell(b, [&](int i, int j, int k) {
-            global[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] = gathered[pos++];
-        });
-    }
-    return global;
-}
 
 
 std::vector<std::int64_t> photons_per_light(const std::vector<double>& power, std::int64_t total,
@@ -129,7 +111,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
             "per node, or use a coarser grid",
             n[0], n[1], n[2], res.replicated_gb, opt.max_replicated_memory_gb));
 
-    const std::vector<double> rho = replicate_density(d, medium.rho);
+    const std::vector<double> rho = allgather_global(medium.rho, d);
     std::array<bool, 3> periodic{d.periodic(0), d.periodic(1), d.periodic(2)};
 
     // Bounding box of the non-empty cells (the whole extent along periodic axes).

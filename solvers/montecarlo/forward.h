@@ -70,9 +70,6 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                             const std::vector<DirectionalLight>& lights,
                             const MonteCarloOptions& opt, const ForwardSettings& settings = {});
 
-// Collective over d.comm(): the global density (x fastest) on every rank, gathered from the
-// owned boxes with MPI_Allgatherv.
-std::vector<double> replicate_density(const Decomposition& d, const Field<double>& rho);
 
 // Photon count of each light: proportional to its power summed over bands (E0 A_projected),
 // at least `batches` per light that carries power, rounded by largest remainder so that the

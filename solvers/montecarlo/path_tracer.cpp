@@ -8,6 +8,7 @@
 
 #include "solvers/montecarlo/empty_space.h"
 #include "solvers/montecarlo/forward.h"
+#include "src/core/gather.h"
 #include "solvers/montecarlo/grid_walk.h"
 #include "solvers/montecarlo/philox.h"
 #include "src/core/log.h"
@@ -66,7 +67,7 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
     const bool ground = scene.background.kind == BackgroundSpec::Kind::ground;
     if (ground && d.rank() == 0) log::warn("montecarlo image: background 'ground' is not modelled, rendered black");
 
-    const std::vector<double> rho = replicate_density(d, m.rho);
+    const std::vector<double> rho = allgather_global(m.rho, d);
     std::vector<std::vector<Voxel>> voxels(static_cast<size_t>(nb));
     for (int b = 0; b < nb; ++b) {
         std::vector<float> k(rho.size());
