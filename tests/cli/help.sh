@@ -1,11 +1,17 @@
 #!/usr/bin/env bash
-# --help works for the command and every subcommand.
+# --help works for the command and every subcommand; `nimbus info` describes a scene.
 set -u
-nimbus=$1
-fail=0
+nimbus=$1 scenes=${2:-}
+fail=0 pass=0
 for sub in "" run info compare; do
-  out=$("$nimbus" $sub --help 2>&1) || { echo "FAIL: nimbus $sub --help exited non-zero"; fail=1; }
-  echo "$out" | grep -qi "usage" || { echo "FAIL: nimbus $sub --help printed no usage"; fail=1; }
+  out=$("$nimbus" $sub --help 2>&1) || { echo "FAIL: nimbus $sub --help exited non-zero"; fail=$((fail + 1)); continue; }
+  if echo "$out" | grep -qi "usage"; then pass=$((pass + 1)); else echo "FAIL: nimbus $sub --help printed no usage"; fail=$((fail + 1)); fi
 done
-[ $fail -eq 0 ] && echo "1 passed, 0 failed" || echo "0 passed, 1 failed"
-exit $fail
+if [ -n "$scenes" ]; then
+  out=$("$nimbus" info "$scenes/dense_cube.toml" 2>&1)
+  for want in "48 x 48 x 48" "vertical optical depth max 20" "memory estimate per rank" "optically thick"; do
+    if echo "$out" | grep -q "$want"; then pass=$((pass + 1)); else echo "FAIL: nimbus info lacks '$want'"; echo "$out" | tail -3; fail=$((fail + 1)); fi
+  done
+fi
+echo "$pass passed, $fail failed"
+[ $fail -eq 0 ]
