@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "src/core/error.h"
+#include "solvers/light/exact_chain.h"
 #include "src/core/gather.h"
 #include "src/core/halo.h"
 #include "src/core/progress.h"
@@ -77,7 +78,10 @@ int dominant_axis(const Vec3& w) {
 // Long characteristics: every owned cell traces its own ray through the replicated density.
 LightTransport exact_light_transport(const Decomposition& d, const Medium& m,
                                      const std::vector<DirectionalLight>& lights, Report& report) {
-    const std::vector<double> rho = allgather_global(m.rho, d);
+    // Slabs along z: pipelined down the chain, no replication. Other process grids: every rank
+    // traces its own cells through a replicated density.
+    const bool chain = d.is_slab_z();
+    const std::vector<double> rho = chain ? std::vector<double>{} : allgather_global(m.rho, d);
     const Int3 n = d.global().hi;
     const std::array<bool, 3> periodic{d.periodic(0), d.periodic(1), d.periodic(2)};
     LightTransport lt;
@@ -89,15 +93,19 @@ LightTransport exact_light_transport(const Decomposition& d, const Medium& m,
                 throw Error(fmt::format("light '{}' travels along periodic axis {}: it never leaves the domain",
                                         light.name, "xyz"[a]));
         Field<double> tau(d.local(), 1, 1, 0.0);
-        for_each_cell(d.local(), [&](int i, int j, int k) {
-            tau(i, j, k) = exact_tau_rho(rho, n, m.grid.h, light.w, i, j, k, periodic);
-        });
+        if (chain) {
+            exact_tau_chain(d, m.rho, m.grid.h, light, tau);
+        } else {
+            for_each_cell(d.local(), [&](int i, int j, int k) {
+                tau(i, j, k) = exact_tau_rho(rho, n, m.grid.h, light.w, i, j, k, periodic);
+            });
+        }
         exchange_halo(tau, d);
         lt.tau_rho.push_back(std::move(tau));
         progress.update(static_cast<double>(lt.tau_rho.size()));
     }
     progress.finish();
-    report.values()["light"] = {{"terms", lights.size()}, {"method", "exact"},
+    report.values()["light"] = {{"terms", lights.size()}, {"method", chain ? "exact (slab chain)" : "exact (replicated)"},
                                 {"replicated_memory_gb", 8e-9 * static_cast<double>(rho.size())}};
     return lt;
 }

@@ -76,7 +76,8 @@ struct LightSpec {
         sweep,  // short characteristics on the sweep engine: O(cells), exact for axis-aligned
                 // light and homogeneous or layered media, interpolation error otherwise
         exact,  // long characteristics: a ray per cell centre through the piecewise-constant
-                // cells, exact; the density is replicated on every rank, O(cells x n)
+                // cells, exact, O(cells x n); on slabs pipelined down the chain (each rank
+                // integrates the pieces in its slab), other process grids replicate the density
     };
     Method method = Method::sweep;
 };

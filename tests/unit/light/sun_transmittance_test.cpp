@@ -181,3 +181,31 @@ TEST(ExactLight, MatchesTheSweepForAxisAlignedLightAndWorksOnAnyProcessGrid) {
 
 }  // namespace
 }  // namespace nimbus
+
+namespace nimbus {
+namespace {
+
+TEST(ExactLight, SlabChainEqualsBruteForceInAHeterogeneousMedium) {
+    // On slabs the exact method integrates each ray piecewise on the ranks it crosses; the sum
+    // must equal one ray march through the whole grid for lights from above, below and low.
+    const Int3 n{13, 11, 17};
+    auto rho_of = [](int i, int j, int k) { return 0.2 + std::fmod(0.37 * i + 1.3 * j * j + 0.71 * k * k, 2.0); };
+    for (std::array<bool, 3> periodic : {std::array<bool, 3>{false, false, false}, std::array<bool, 3>{true, true, false}}) {
+        LitMedium s = make(MPI_COMM_WORLD, n, 0.7, rho_of, periodic);
+        std::vector<double> full(static_cast<size_t>(n[0] * n[1] * n[2]));
+        for_each_cell(Box{{0, 0, 0}, n}, [&](int i, int j, int k) { full[(k * n[1] + j) * n[0] + i] = rho_of(i, j, k); });
+        const std::vector<DirectionalLight> lights{{"sun", normalized(Vec3{0.55, 0.35, -0.76}), {1.0}},
+                                                   {"below", normalized(Vec3{-0.3, 0.6, 0.7}), {1.0}},
+                                                   {"low", normalized(Vec3{0.9, -0.4, -0.15}), {1.0}}};
+        Report r;
+        const auto lt = compute_light_transport(s.d, s.m, lights, r, {}, LightSpec::Method::exact);
+        for (size_t l = 0; l < lights.size(); ++l)
+            for_each_cell(s.d.local(), [&](int i, int j, int k) {
+                const double want = exact_tau_rho(full, n, 0.7, lights[l].w, i, j, k, periodic);
+                ASSERT_NEAR(lt.tau_rho[l](i, j, k), want, 1e-10 * (1 + want)) << lights[l].name << " " << i << "," << j << "," << k;
+            });
+    }
+}
+
+}  // namespace
+}  // namespace nimbus
