@@ -55,22 +55,6 @@ std::vector<KeyPart> split_key(const std::string& key) {
     return parts;
 }
 
-std::string toml_quoted(const std::string& s) {
-    std::string out = "\"";
-    for (char c : s) {
-        const auto u = static_cast<unsigned char>(c);
-        if (c == '"' || c == '\\') {
-            out += '\\';
-            out += c;
-        } else if (u < 0x20 || u == 0x7f) {
-            out += fmt::format("\\u{:04X}", static_cast<unsigned>(u));
-        } else {
-            out += c;
-        }
-    }
-    return out + "\"";
-}
-
 // Parses `text` as a TOML value whose source name is `name`; nullopt if it is not one value.
 bool parse_value(const std::string& text, const std::string& name, toml::value& out) {
     try {

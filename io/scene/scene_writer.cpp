@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "io/scene/scene_toml.h"
+#include "io/scene/toml_reader.h"
 
 namespace nimbus {
 namespace {
@@ -20,21 +21,7 @@ std::string num(double x) {
     return s;
 }
 
-std::string str(const std::string& s) {
-    std::string out = "\"";
-    for (char c : s) {
-        const auto u = static_cast<unsigned char>(c);
-        if (c == '"' || c == '\\') {
-            out += '\\';
-            out += c;
-        } else if (u < 0x20 || u == 0x7f) {
-            out += fmt::format("\\u{:04X}", static_cast<unsigned>(u));
-        } else {
-            out += c;
-        }
-    }
-    return out + "\"";
-}
+std::string str(const std::string& s) { return scene_io::toml_quoted(s); }
 
 const char* boolean(bool b) { return b ? "true" : "false"; }
 

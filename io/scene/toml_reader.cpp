@@ -285,4 +285,20 @@ std::vector<TableReader> TableReader::tables(const std::string& key,
     return out;
 }
 
+std::string toml_quoted(const std::string& s) {
+    std::string out = "\"";
+    for (char c : s) {
+        const auto u = static_cast<unsigned char>(c);
+        if (c == '"' || c == '\\') {
+            out += '\\';
+            out += c;
+        } else if (u < 0x20 || u == 0x7f) {
+            out += fmt::format("\\u{:04X}", static_cast<unsigned>(u));
+        } else {
+            out += c;
+        }
+    }
+    return out + "\"";
+}
+
 }  // namespace nimbus::scene_io

@@ -31,6 +31,9 @@ std::string closest_name(const std::string& name, const std::vector<std::string>
 // "a, b, c"
 std::string join(const std::vector<std::string>& names);
 
+// s as a TOML basic string: quoted, with \" \\ and control characters escaped.
+std::string toml_quoted(const std::string& s);
+
 // A view of one TOML table at dotted path `path` ("" for the root, "grid", "optics[1]").
 // The constructor rejects keys not in `allowed` (naming the closest allowed key).
 class TableReader {
