@@ -241,29 +241,70 @@ void read_camera(const TableReader& t, CameraSpec& c) {
     c.domain_units = t.read_choice("units", kCameraUnits, c.domain_units ? 0 : 1) == 0;
 }
 
+void read_montecarlo(const TableReader& mc, MonteCarloOptions& o) {
+    mc.read("photons", o.photons);
+    mc.read("time_budget", o.time_budget);
+    mc.read("target_rel_error", o.target_rel_error);
+    mc.read("seed", o.seed);
+    mc.read("batches", o.batches);
+    mc.read("roulette_weight", o.roulette_weight);
+    mc.read("max_replicated_memory_gb", o.max_replicated_memory_gb);
+    mc.read("image", o.image);
+    mc.read("samples_per_pixel", o.samples_per_pixel);
+}
+
+void read_diffusion(const TableReader& df, DiffusionOptions& o) {
+    df.read("solver", o.solver);
+    df.read("tolerance", o.tolerance);
+    df.read("max_iterations", o.max_iterations);
+    df.read("margin", o.margin);
+    df.read("max_transport_length", o.max_transport_length);
+    df.read("clamp_negative", o.clamp_negative);
+    df.read("delta_scaling", o.delta_scaling);
+}
+
+void read_dom(const TableReader& t, DomOptions& o) {
+    t.read("quadrature", o.quadrature);
+    t.read("order", o.order);
+    t.read("polar", o.polar);
+    t.read("azimuthal", o.azimuthal);
+    t.read("legendre_order", o.legendre_order);
+    t.read("delta_m", o.delta_m);
+    t.read("scheme", o.scheme);
+    t.read("iteration", o.iteration);
+    t.read("tolerance", o.tolerance);
+    t.read("max_iterations", o.max_iterations);
+    t.read("tile_rows", o.tile_rows);
+}
+
+void read_lpm(const TableReader& t, LpmOptions& o) {
+    t.read("p", o.p);
+    t.read("refinement", o.refinement);
+    t.read("k", o.k);
+    t.read("solution_bins", o.solution_bins);
+    t.read("iterations", o.iterations);
+    t.read("epsilon", o.epsilon);
+}
+
+void read_psf(const TableReader& t, PsfOptions& o) {
+    t.read("levels", o.levels);
+    t.read("step_growth", o.step_growth);
+}
+
 void read_model(const TableReader& t, ModelSpec& m) {
     if (t.has("name")) m.name = kModelNames[static_cast<size_t>(t.read_choice("name", kModelNames, 0))];
-    const TableReader mc = t.table("montecarlo", {"photons", "time_budget", "target_rel_error", "seed",
-                                                  "batches", "roulette_weight", "max_replicated_memory_gb",
-                                                  "image", "samples_per_pixel"});
-    mc.read("photons", m.montecarlo.photons);
-    mc.read("time_budget", m.montecarlo.time_budget);
-    mc.read("target_rel_error", m.montecarlo.target_rel_error);
-    mc.read("seed", m.montecarlo.seed);
-    mc.read("batches", m.montecarlo.batches);
-    mc.read("roulette_weight", m.montecarlo.roulette_weight);
-    mc.read("max_replicated_memory_gb", m.montecarlo.max_replicated_memory_gb);
-    mc.read("image", m.montecarlo.image);
-    mc.read("samples_per_pixel", m.montecarlo.samples_per_pixel);
-    const TableReader df = t.table("diffusion", {"solver", "tolerance", "max_iterations", "margin",
-                                                 "max_transport_length", "clamp_negative", "delta_scaling"});
-    df.read("solver", m.diffusion.solver);
-    df.read("tolerance", m.diffusion.tolerance);
-    df.read("max_iterations", m.diffusion.max_iterations);
-    df.read("margin", m.diffusion.margin);
-    df.read("max_transport_length", m.diffusion.max_transport_length);
-    df.read("clamp_negative", m.diffusion.clamp_negative);
-    df.read("delta_scaling", m.diffusion.delta_scaling);
+    read_montecarlo(t.table("montecarlo", {"photons", "time_budget", "target_rel_error", "seed", "batches",
+                                           "roulette_weight", "max_replicated_memory_gb", "image",
+                                           "samples_per_pixel"}),
+                    m.montecarlo);
+    read_diffusion(t.table("diffusion", {"solver", "tolerance", "max_iterations", "margin",
+                                         "max_transport_length", "clamp_negative", "delta_scaling"}),
+                   m.diffusion);
+    read_dom(t.table("dom", {"quadrature", "order", "polar", "azimuthal", "legendre_order", "delta_m",
+                             "scheme", "iteration", "tolerance", "max_iterations", "tile_rows"}),
+             m.dom);
+    read_lpm(t.table("lpm", {"p", "refinement", "k", "solution_bins", "iterations", "epsilon"}), m.lpm);
+    read_psf(t.table("psf", {"levels", "step_growth"}), m.psf);
 }
 
 Scene convert(const toml::value& tree, const std::string& source, const fs::path& base_dir) {
@@ -300,7 +341,7 @@ Scene convert(const toml::value& tree, const std::string& source, const fs::path
     r.read("early_termination", s.render.early_termination);
     r.read_per_band("emission_color", s.render.emission_color);
     r.read("exposure", s.render.exposure);
-    read_model(root.table("model", {"name", "montecarlo", "diffusion"}), s.model);
+    read_model(root.table("model", {"name", "montecarlo", "diffusion", "dom", "lpm", "psf"}), s.model);
     const TableReader out = root.table("output", {"dir", "name", "hdf5", "image"});
     out.read("dir", s.output.dir);
     out.read("name", s.output.name);
@@ -311,6 +352,9 @@ Scene convert(const toml::value& tree, const std::string& source, const fs::path
         s.validate();
         s.model.montecarlo.validate();
         s.model.diffusion.validate();
+        s.model.dom.validate();
+        s.model.lpm.validate();
+        s.model.psf.validate();
     } catch (const Error& e) {
         throw_located(e.what(), s, tree, source);
     }

@@ -40,6 +40,37 @@ std::string nums(const std::array<double, 3>& a) { return list(a, num); }
 std::string vec(const Vec3& v) { return nums({v.x, v.y, v.z}); }
 std::string per_band(const std::vector<double>& v) { return v.size() == 1 ? num(v[0]) : list(v, num); }
 
+void write_dom(std::ostream& o, const DomOptions& d) {
+    o << "[model.dom]\n";
+    o << "quadrature = " << str(d.quadrature) << "\n";
+    o << "order = " << d.order << "\n";
+    o << "polar = " << d.polar << "\n";
+    o << "azimuthal = " << d.azimuthal << "\n";
+    o << "legendre_order = " << d.legendre_order << "\n";
+    o << "delta_m = " << boolean(d.delta_m) << "\n";
+    o << "scheme = " << str(d.scheme) << "\n";
+    o << "iteration = " << str(d.iteration) << "\n";
+    o << "tolerance = " << num(d.tolerance) << "\n";
+    o << "max_iterations = " << d.max_iterations << "\n";
+    o << "tile_rows = " << d.tile_rows << "\n";
+}
+
+void write_lpm(std::ostream& o, const LpmOptions& l) {
+    o << "[model.lpm]\n";
+    o << "p = " << l.p << "\n";
+    o << "refinement = " << l.refinement << "\n";
+    o << "k = " << l.k << "\n";
+    o << "solution_bins = " << l.solution_bins << "\n";
+    o << "iterations = " << l.iterations << "\n";
+    o << "epsilon = " << num(l.epsilon) << "\n";
+}
+
+void write_psf(std::ostream& o, const PsfOptions& p) {
+    o << "[model.psf]\n";
+    o << "levels = " << p.levels << "\n";
+    o << "step_growth = " << num(p.step_growth) << "\n";
+}
+
 // The unit name to write: a named unit only when its scale is exactly the named one's.
 bool named_unit(const GridSpec& g) {
     return (g.unit == "m" && g.unit_scale == 1.0) || (g.unit == "km" && g.unit_scale == 1000.0) ||
@@ -152,6 +183,9 @@ std::string scene_to_toml(const Scene& s) {
     o << "max_transport_length = " << num(df.max_transport_length) << "\n";
     o << "clamp_negative = " << boolean(df.clamp_negative) << "\n";
     o << "delta_scaling = " << boolean(df.delta_scaling) << "\n";
+    write_dom(o, s.model.dom);
+    write_lpm(o, s.model.lpm);
+    write_psf(o, s.model.psf);
 
     o << "\n[output]\n";
     o << "dir = " << str(s.output.dir) << "\n";

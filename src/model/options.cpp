@@ -29,4 +29,34 @@ void DiffusionOptions::validate() const {
     if (max_transport_length < 0) throw Error("model.diffusion.max_transport_length must be >= 0 (0 = solve region size)");
 }
 
+void DomOptions::validate() const {
+    if (quadrature != "level-symmetric" && quadrature != "product" && quadrature != "cube96")
+        throw Error(fmt::format("model.dom.quadrature = '{}': allowed are level-symmetric, product, cube96", quadrature));
+    if (order < 2 || order > 16 || order % 2 != 0) throw Error("model.dom.order must be even, 2..16");
+    if (polar < 2 || polar % 2 != 0) throw Error("model.dom.polar must be even and >= 2");
+    if (azimuthal < 1) throw Error("model.dom.azimuthal must be >= 1");
+    if (legendre_order < 0) throw Error("model.dom.legendre_order must be >= 0");
+    if (scheme != "step" && scheme != "diamond")
+        throw Error(fmt::format("model.dom.scheme = '{}': allowed are step, diamond", scheme));
+    if (iteration != "source" && iteration != "dsa" && iteration != "gmres")
+        throw Error(fmt::format("model.dom.iteration = '{}': allowed are source, dsa, gmres", iteration));
+    if (tolerance <= 0 || tolerance >= 1) throw Error("model.dom.tolerance must be in (0, 1)");
+    if (max_iterations < 1) throw Error("model.dom.max_iterations must be >= 1");
+    if (tile_rows < 1) throw Error("model.dom.tile_rows must be >= 1");
+}
+
+void LpmOptions::validate() const {
+    if (p < 1 || p % 2 == 0) throw Error("model.lpm.p must be odd and >= 1 (p x p directions per map)");
+    if (refinement < 1) throw Error("model.lpm.refinement must be >= 1");
+    if (k < 1) throw Error("model.lpm.k must be >= 1");
+    if (solution_bins < 1) throw Error("model.lpm.solution_bins must be >= 1");
+    if (iterations < 1) throw Error("model.lpm.iterations must be >= 1");
+    if (epsilon < 0 || epsilon >= 1) throw Error("model.lpm.epsilon must be in [0, 1)");
+}
+
+void PsfOptions::validate() const {
+    if (levels < 0) throw Error("model.psf.levels must be >= 0 (0 = automatic)");
+    if (step_growth < 0) throw Error("model.psf.step_growth must be >= 0");
+}
+
 }  // namespace nimbus

@@ -35,4 +35,38 @@ struct DiffusionOptions {
     void validate() const;
 };
 
+// Discrete ordinates (solvers/dom).
+struct DomOptions {
+    std::string quadrature = "level-symmetric";  // level-symmetric | product | cube96
+    int order = 8;                  // S_N order for level-symmetric (even, 2..16)
+    int polar = 8;                  // product set: Gauss-Legendre polar points (over [-1, 1])
+    int azimuthal = 16;             // product set: Chebyshev azimuths
+    int legendre_order = 8;         // L: HG expanded in Legendre moments 0..L
+    bool delta_m = true;            // delta-M scaling of the truncated phase function (Wiscombe 1977)
+    std::string scheme = "step";    // step | diamond (with negative-flux fix-up)
+    std::string iteration = "dsa";  // source | dsa | gmres
+    double tolerance = 1e-6;        // relative change / residual of the scalar flux
+    int max_iterations = 500;
+    int tile_rows = 8;              // KBA block rows across the slab face
+    void validate() const;
+};
+
+// Light propagation maps (solvers/lpm, Fattal 2009).
+struct LpmOptions {
+    int p = 5;                  // directions per map: p x p
+    int refinement = 1;         // map rays per grid cell along each map axis
+    int k = 2;                  // coarse angular bins of the unpropagated field U: 6 k^2
+    int solution_bins = 1;      // angular bins of the solution I (1 = isotropic)
+    int iterations = 3;         // map sweeps (all six maps) at most
+    double epsilon = 1e-3;      // stop when max U < epsilon x max first-scatter source
+    void validate() const;
+};
+
+// Path-integral point-spread function (solvers/psf, Premoze 2004).
+struct PsfOptions {
+    int levels = 0;              // pyramid levels (0 = as many as the grid allows)
+    double step_growth = 1.0;    // view-ray sample spacing grows with the blur width by this factor
+    void validate() const;
+};
+
 }  // namespace nimbus

@@ -121,6 +121,9 @@ struct ModelSpec {
     std::string name = "single";  // single | montecarlo | diffusion (more as models land)
     MonteCarloOptions montecarlo;  // [model.montecarlo]
     DiffusionOptions diffusion;    // [model.diffusion]
+    DomOptions dom;                // [model.dom]
+    LpmOptions lpm;                // [model.lpm]
+    PsfOptions psf;                // [model.psf]
 };
 
 struct OutputSpec {
