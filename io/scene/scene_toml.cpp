@@ -261,6 +261,9 @@ void read_diffusion(const TableReader& df, DiffusionOptions& o) {
     df.read("max_transport_length", o.max_transport_length);
     df.read("clamp_negative", o.clamp_negative);
     df.read("delta_scaling", o.delta_scaling);
+    df.read("flux_limiter", o.flux_limiter);
+    df.read("limiter_iterations", o.limiter_iterations);
+    df.read("limiter_tolerance", o.limiter_tolerance);
 }
 
 void read_dom(const TableReader& t, DomOptions& o) {
@@ -298,7 +301,8 @@ void read_model(const TableReader& t, ModelSpec& m) {
                                            "samples_per_pixel"}),
                     m.montecarlo);
     read_diffusion(t.table("diffusion", {"solver", "tolerance", "max_iterations", "margin",
-                                         "max_transport_length", "clamp_negative", "delta_scaling"}),
+                                         "max_transport_length", "clamp_negative", "delta_scaling",
+                                         "flux_limiter", "limiter_iterations", "limiter_tolerance"}),
                    m.diffusion);
     read_dom(t.table("dom", {"quadrature", "order", "polar", "azimuthal", "legendre_order", "delta_m",
                              "scheme", "iteration", "tolerance", "max_iterations", "tile_rows"}),

@@ -183,6 +183,9 @@ std::string scene_to_toml(const Scene& s) {
     o << "max_transport_length = " << num(df.max_transport_length) << "\n";
     o << "clamp_negative = " << boolean(df.clamp_negative) << "\n";
     o << "delta_scaling = " << boolean(df.delta_scaling) << "\n";
+    o << "flux_limiter = " << str(df.flux_limiter) << "\n";
+    o << "limiter_iterations = " << df.limiter_iterations << "\n";
+    o << "limiter_tolerance = " << num(df.limiter_tolerance) << "\n";
     write_dom(o, s.model.dom);
     write_lpm(o, s.model.lpm);
     write_psf(o, s.model.psf);

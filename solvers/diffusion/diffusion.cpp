@@ -22,7 +22,10 @@ public:
                 {"margin", opt_.margin},
                 {"max_transport_length", opt_.max_transport_length},
                 {"clamp_negative", opt_.clamp_negative},
-                {"delta_scaling", opt_.delta_scaling}};
+                {"delta_scaling", opt_.delta_scaling},
+                {"flux_limiter", opt_.flux_limiter},
+                {"limiter_iterations", opt_.limiter_iterations},
+                {"limiter_tolerance", opt_.limiter_tolerance}};
     }
 
     void solve(const SolveContext& ctx, DiffuseSolution& out) override {

@@ -1,16 +1,29 @@
 #include "solvers/diffusion/solve_diffusion.h"
 
 #include <algorithm>
+#include <cmath>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "solvers/diffusion/assemble.h"
+#include "solvers/diffusion/flux_limiter.h"
 #include "solvers/diffusion/linear_solve.h"
 #include "solvers/diffusion/solve_region.h"
+#include "src/core/error.h"
 #include "src/core/halo.h"
 
 namespace nimbus::diffusion {
+namespace {
 
-DiffusionResult solve_diffusion(const Decomposition& d, const DiffusionProblem& p,
-                                const DiffusionOptions& opt, Report& report) {
+// The transport-length cap of diffusion_kernel.h: the option, or the default for the region.
+double transport_cap(const SolveRegion& region, const DiffusionProblem& p, const DiffusionOptions& opt) {
+    return opt.max_transport_length > 0.0 ? opt.max_transport_length : default_transport_length(region, p);
+}
+
+// One linear solve of p (all right-hand sides share the matrix).
+DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
+                             const DiffusionOptions& opt, Report& report) {
     const size_t nrhs = p.Q0.size();
     DiffusionResult res;
     res.region = find_solve_region(d, p, opt.margin);
@@ -28,10 +41,9 @@ DiffusionResult solve_diffusion(const Decomposition& d, const DiffusionProblem& 
     if (res.region.box.empty()) return res;  // nothing scatters
 
     // Cap of the transport mean free path (diffusion_kernel.h): the option, or the region size.
-    double ell = opt.max_transport_length;
-    if (ell <= 0.0) ell = default_transport_length(res.region, p);
-    rec["kappa_tr_floor"] = 1.0 / ell;
-    const Assembler assembler(p, 1.0 / ell);
+    const double floor = 1.0 / transport_cap(res.region, p, opt);
+    rec["kappa_tr_floor"] = floor;
+    const Assembler assembler(p, floor);
     LinearSolveOutput lin = opt.solver == "petsc"
                                 ? solve_with_petsc(d, assembler, p, res.region, opt, report)
                                 : solve_with_hypre(d, assembler, p, res.region, opt, report);
@@ -79,6 +91,77 @@ DiffusionResult solve_diffusion(const Decomposition& d, const DiffusionProblem& 
                                   {"min_U_interior", st.min_U_interior}});
     }
     return res;
+}
+
+// Flux-limited diffusion (flux_limiter.h) for right-hand side r alone (lambda depends on U):
+// Picard iteration on kappa_eff = kappa_tr / (3 lambda(R)) from the previous iterate, until the
+// largest change of U relative to max U is below opt.limiter_tolerance.
+void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t r,
+                       const DiffusionOptions& opt, Report& report, DiffusionResult& out) {
+    DiffusionProblem q;
+    q.h = p.h;
+    q.n = p.n;
+    q.periodic = p.periodic;
+    q.kappa_tr = p.kappa_tr;
+    q.sigma_a = p.sigma_a;
+    q.Q0 = {p.Q0[r]};
+    q.G = {p.G[r]};
+    DiffusionResult res = solve_linear(d, q, opt, report);  // P1 with the cap: the first iterate
+    const double floor = 1.0 / transport_cap(res.region, p, opt);
+    std::vector<double> history;
+    int linear_iterations = res.stats[0].iterations;
+    bool converged = false;
+    for (int it = 0; it < opt.limiter_iterations && !converged; ++it) {
+        for_each_cell(d.local(), [&](int i, int j, int k) {
+            const double kt = p.kappa_tr(i, j, k);
+            if (kt <= 0.0) return;
+            const double kc = std::max(q.kappa_tr(i, j, k), floor);
+            const double* F = &res.flux[0](i, j, k);
+            const double Fn = std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]);
+            const double lambda_prev = kt / (3.0 * q.kappa_tr(i, j, k));
+            const double lambda =
+                0.5 * (lambda_prev + levermore_pomraning(knudsen_number(res.U[0](i, j, k), Fn, kt, kc)));
+            q.kappa_tr(i, j, k) = kt / (3.0 * lambda);
+            for (int c = 0; c < 3; ++c) q.G[0](i, j, k, c) = 3.0 * lambda * p.G[r](i, j, k, c);
+        });
+        exchange_halo(q.kappa_tr, d);
+        exchange_halo(q.G[0], d);
+        const Field<double> previous = res.U[0];
+        // The cap stays: without it the Picard iteration oscillated (no convergence in 30
+        // iterations) on a cube of optical thickness 0.2, where lambda -> 1/R everywhere.
+        res = solve_linear(d, q, opt, report);
+        linear_iterations += res.stats[0].iterations;
+        double local[2] = {0.0, 0.0}, global[2];
+        for_each_cell(d.local(), [&](int i, int j, int k) {
+            local[0] = std::max(local[0], std::abs(res.U[0](i, j, k) - previous(i, j, k)));
+            local[1] = std::max(local[1], std::abs(res.U[0](i, j, k)));
+        });
+        MPI_Allreduce(local, global, 2, MPI_DOUBLE, MPI_MAX, d.comm());
+        history.push_back(global[1] > 0.0 ? global[0] / global[1] : 0.0);
+        converged = history.back() < opt.limiter_tolerance;
+    }
+    if (!converged && opt.limiter_iterations > 0)
+        throw Error(fmt::format("flux-limited diffusion did not converge in {} Picard iterations "
+                                "(model.diffusion.limiter_iterations); relative changes of U: {:.2e}",
+                                opt.limiter_iterations, fmt::join(history, ", ")));
+    report.values()["diffusion"]["flux_limiter"].push_back(
+        {{"picard_iterations", history.size()}, {"linear_iterations", linear_iterations},
+         {"relative_changes", history}});
+    out.region = res.region;
+    out.U.push_back(std::move(res.U[0]));
+    out.flux.push_back(std::move(res.flux[0]));
+    out.stats.push_back(res.stats[0]);
+}
+
+}  // namespace
+
+DiffusionResult solve_diffusion(const Decomposition& d, const DiffusionProblem& p,
+                                const DiffusionOptions& opt, Report& report) {
+    if (opt.flux_limiter == "none") return solve_linear(d, p, opt, report);
+    DiffusionResult out;
+    for (size_t r = 0; r < p.Q0.size(); ++r) solve_limited_rhs(d, p, r, opt, report, out);
+    if (p.Q0.empty()) out.region = find_solve_region(d, p, opt.margin);
+    return out;
 }
 
 }  // namespace nimbus::diffusion

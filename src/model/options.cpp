@@ -27,6 +27,10 @@ void DiffusionOptions::validate() const {
     if (max_iterations < 1) throw Error("model.diffusion.max_iterations must be >= 1");
     if (margin < 0) throw Error("model.diffusion.margin must be >= 0");
     if (max_transport_length < 0) throw Error("model.diffusion.max_transport_length must be >= 0 (0 = solve region size)");
+    if (flux_limiter != "none" && flux_limiter != "levermore-pomraning")
+        throw Error(fmt::format("model.diffusion.flux_limiter = '{}': allowed are none, levermore-pomraning", flux_limiter));
+    if (limiter_iterations < 1) throw Error("model.diffusion.limiter_iterations must be >= 1");
+    if (limiter_tolerance <= 0 || limiter_tolerance >= 1) throw Error("model.diffusion.limiter_tolerance must be in (0, 1)");
 }
 
 void DomOptions::validate() const {
@@ -49,7 +53,9 @@ void LpmOptions::validate() const {
     if (p < 1 || p % 2 == 0) throw Error("model.lpm.p must be odd and >= 1 (p x p directions per map)");
     if (refinement < 1) throw Error("model.lpm.refinement must be >= 1");
     if (k < 1) throw Error("model.lpm.k must be >= 1");
-    if (solution_bins < 1) throw Error("model.lpm.solution_bins must be >= 1");
+    if (p % k != 0) throw Error("model.lpm.k must divide model.lpm.p (each map bin inside one coarse bin, Fattal 2009 §3.3)");
+    if (solution_bins != 1 && solution_bins != 4)
+        throw Error("model.lpm.solution_bins must be 1 (fluence) or 4 (fluence and flux)");
     if (iterations < 1) throw Error("model.lpm.iterations must be >= 1");
     if (epsilon < 0 || epsilon >= 1) throw Error("model.lpm.epsilon must be in [0, 1)");
 }

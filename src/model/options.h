@@ -32,6 +32,9 @@ struct DiffusionOptions {
     bool clamp_negative = true;       // set negative P1 fluence (boundary layers lit by a strongly
                                       // forward-scattered source) to 0; counts are reported
     bool delta_scaling = true;        // delta-Eddington optics for the P1 solve (solvers/diffusion)
+    std::string flux_limiter = "none";  // none | levermore-pomraning (flux-limited diffusion)
+    int limiter_iterations = 30;      // Picard iterations of the flux limiter at most
+    double limiter_tolerance = 1e-2;  // stop when max |ΔU| / max U falls below this
     void validate() const;
 };
 
@@ -55,8 +58,8 @@ struct DomOptions {
 struct LpmOptions {
     int p = 5;                  // directions per map: p x p
     int refinement = 1;         // map rays per grid cell along each map axis
-    int k = 2;                  // coarse angular bins of the unpropagated field U: 6 k^2
-    int solution_bins = 1;      // angular bins of the solution I (1 = isotropic)
+    int k = 1;                  // coarse angular bins of the unpropagated field U: 6 k^2 (p % k == 0)
+    int solution_bins = 1;      // solution moments: 1 = fluence only, 4 = fluence + flux F
     int iterations = 3;         // map sweeps (all six maps) at most
     double epsilon = 1e-3;      // stop when max U < epsilon x max first-scatter source
     void validate() const;

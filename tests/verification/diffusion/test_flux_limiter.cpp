@@ -1,0 +1,102 @@
+// Flux-limited diffusion (solvers/diffusion/flux_limiter.h): the Levermore-Pomraning function,
+// the flux bound |F| <= 4πU that P1 violates in thin media, and agreement with P1 where the
+// medium is thick (R -> 0, lambda -> 1/3).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "diffusion_test_util.h"
+#include "solvers/diffusion/diffusion.h"
+#include "solvers/diffusion/flux_limiter.h"
+#include "tests/support/mpi_test.h"
+
+namespace nimbus {
+namespace {
+
+using diffusion::levermore_pomraning;
+
+TEST(FluxLimiter, LevermorePomraningLimits) {
+    EXPECT_DOUBLE_EQ(levermore_pomraning(0.0), 1.0 / 3.0);
+    // The three branches (series, closed form, large R) meet continuously.
+    for (double R : {0.1, 20.0})
+        EXPECT_NEAR(levermore_pomraning(R * (1 - 1e-12)), levermore_pomraning(R * (1 + 1e-12)), 1e-12);
+    // Free streaming: lambda R -> 1, and never above (|F| <= 4πU).
+    EXPECT_NEAR(levermore_pomraning(1e3) * 1e3, 1.0, 1.1e-3);
+    double previous = 1.0;
+    for (double R = 1e-4; R < 1e3; R *= 1.1) {
+        const double l = levermore_pomraning(R);
+        EXPECT_LT(l * R, 1.0) << R;
+        EXPECT_LT(l, previous) << R;  // monotonically decreasing
+        previous = l;
+    }
+    // A value: lambda(1) = coth(1) - 1 = 0.3130352855.
+    EXPECT_NEAR(levermore_pomraning(1.0), 0.3130352854993313, 1e-12);
+}
+
+constexpr int kN = 24;
+
+double cube(int i, int j, int k) {
+    auto in = [](int a) { return a >= 4 && a < kN - 4; };
+    return in(i) && in(j) && in(k) ? 1.0 : 0.0;
+}
+
+// Largest |F| / (4πU) over the full cells (delta scaling off: the output is the P1 field alone).
+double max_flux_ratio(const DiffuseSolution& sol, const Decomposition& d) {
+    double worst = 0.0;
+    for_each_cell(d.local(), [&](int i, int j, int k) {
+        const double phi = sol.fluence[0](i, j, k);
+        if (cube(i, j, k) == 0.0 || phi <= 0.0) return;
+        const double* F = &sol.flux[0](i, j, k);
+        worst = std::max(worst, std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]) / phi);
+    });
+    return test::global_max(worst, d.comm());
+}
+
+DiffuseSolution run(const Decomposition& d, const BandOptics& band, double h, const std::string& limiter,
+                    Report& report) {
+    DiffusionOptions opt;
+    opt.delta_scaling = false;
+    opt.flux_limiter = limiter;
+    opt.limiter_tolerance = 1e-3;
+    auto model = make_diffusion_model(opt);
+    return test::run_model(*model, d, h, band, cube, normalized(Vec3{0.3, 0.2, -1.0}), report);
+}
+
+TEST(FluxLimiter, BoundsTheFluxWhereP1ExceedsIt) {
+    // A cube of optical thickness 16 with g = 0.85 (kappa_tr h = 0.235, above the transport cap
+    // of this region): the forward-peaked first-scatter flux G = Q1/kappa_tr makes the P1 flux
+    // exceed what any radiance can carry near the lit faces; the limiter keeps |F| <= 4πU.
+    Decomposition d(MPI_COMM_WORLD, {kN, kN, kN});
+    const BandOptics thin{"gray", 1.0, 0.9, 0.85};
+    Report r1, r2;
+    const double p1 = max_flux_ratio(run(d, thin, 1.0, "none", r1), d);
+    const double fld = max_flux_ratio(run(d, thin, 1.0, "levermore-pomraning", r2), d);
+    if (test::world_rank() == 0)
+        std::printf("cube: max |F|/(4πU) P1 %.3f, flux-limited %.3f\n", p1, fld);
+    EXPECT_GT(p1, 10.0);
+    EXPECT_LE(fld, 1.0);
+}
+
+TEST(FluxLimiter, AgreesWithP1InsideAThickMedium) {
+    // Optical thickness 64 across the cube (kappa_tr h = 4 with g = 0): R << 1 inside.
+    Decomposition d(MPI_COMM_WORLD, {kN, kN, kN});
+    const BandOptics thick{"gray", 4.0, 0.99, 0.0};
+    Report r1, r2;
+    const auto p1 = run(d, thick, 1.0, "none", r1);
+    const auto fld = run(d, thick, 1.0, "levermore-pomraning", r2);
+    double diff = 0.0, peak = 0.0;
+    for_each_cell(d.local(), [&](int i, int j, int k) {
+        auto deep = [](int a) { return a >= 8 && a < kN - 8; };
+        if (!(deep(i) && deep(j) && deep(k))) return;
+        diff = std::max(diff, std::abs(fld.fluence[0](i, j, k) - p1.fluence[0](i, j, k)));
+        peak = std::max(peak, p1.fluence[0](i, j, k));
+    });
+    diff = test::global_max(diff, d.comm());
+    peak = test::global_max(peak, d.comm());
+    if (test::world_rank() == 0) std::printf("thick cube interior: max |FLD - P1| / max = %.2e\n", diff / peak);
+    EXPECT_LT(diff / peak, 0.02);
+}
+
+}  // namespace
+}  // namespace nimbus
