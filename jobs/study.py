@@ -111,6 +111,8 @@ def main():
     p.add_argument("--ranks", type=int, default=2)
     p.add_argument("--nimbus", default=os.path.join("build", "bin", "nimbus"))
     p.add_argument("--out", default="study")
+    p.add_argument("--reuse-reference", action="store_true",
+                   help="keep OUT/<scene>/reference/nimbus.h5 when it exists (same scene and settings!)")
     args = p.parse_args()
     models = [parse_model(m) for m in args.model]
     os.makedirs(args.out, exist_ok=True)
@@ -120,8 +122,12 @@ def main():
         tag = os.path.splitext(os.path.basename(scene))[0]
         ref_dir = os.path.join(args.out, tag, "reference")
         ref_sets = args.set + ["model.name=montecarlo", f"model.montecarlo.photons={args.reference_photons}"] + args.reference_set
-        ref_wall, _ = run_nimbus(args, scene, ref_sets, ref_dir)
-        print(f"{tag}: reference done in {ref_wall:.1f} s", flush=True)
+        if args.reuse_reference and os.path.exists(os.path.join(ref_dir, "nimbus.h5")):
+            ref_wall = float("nan")
+            print(f"{tag}: reusing the reference in {ref_dir}", flush=True)
+        else:
+            ref_wall, _ = run_nimbus(args, scene, ref_sets, ref_dir)
+            print(f"{tag}: reference done in {ref_wall:.1f} s", flush=True)
         for label, sets in models:
             run_dir = os.path.join(args.out, tag, label)
             wall, report = run_nimbus(args, scene, args.set + sets, run_dir)
