@@ -49,11 +49,20 @@ std::vector<std::uint8_t> empty_space_distance(const std::array<int, 3>& n, cons
     return out;
 }
 
-std::vector<Voxel> make_voxels(const std::array<int, 3>& n, const std::vector<float>& kappa) {
+VoxelGrid make_voxels(const std::array<int, 3>& n, const std::vector<float>& kappa) {
     const std::vector<std::uint8_t> skip = empty_space_distance(n, kappa);
-    std::vector<Voxel> v(kappa.size());
-    for (size_t c = 0; c < kappa.size(); ++c) v[c] = {kappa[c], skip[c]};
-    return v;
+    VoxelGrid g;
+    g.n = n;
+    g.domain = n;
+    g.voxel.assign(static_cast<size_t>(n[0] + 2) * (n[1] + 2) * (n[2] + 2), Voxel{0.0f, outside_skip});
+    const GridView view = g.view({false, false, false});
+    for (int k = 0; k < n[2]; ++k)
+        for (int j = 0; j < n[1]; ++j)
+            for (int i = 0; i < n[0]; ++i) {
+                const size_t c = (static_cast<size_t>(k) * n[1] + j) * n[0] + i;
+                g.voxel[static_cast<size_t>(view.index({i, j, k}))] = {kappa[c], skip[c]};
+            }
+    return g;
 }
 
 }  // namespace nimbus::mc

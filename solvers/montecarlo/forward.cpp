@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <type_traits>
 
 #include "solvers/montecarlo/empty_space.h"
 #include "solvers/montecarlo/grid_walk.h"
@@ -125,6 +126,14 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     for (int a = 0; a < 3; ++a)
         if (periodic[a] || box_hi[a] <= box_lo[a]) box_lo[a] = 0, box_hi[a] = periodic[a] ? n[a] : 0;
 
+    // The walk's grid covers only the box (outside it all is empty), padded by one ghost
+    // layer (grid_walk.h); the per-cell arrays below use the walk's cell indices.
+    Int3 box_n;
+    for (int a = 0; a < 3; ++a) box_n[a] = std::max(box_hi[a] - box_lo[a], 1);
+    const GridView padded{box_n, periodic, nullptr};
+    const std::int64_t pcells = static_cast<std::int64_t>(box_n[0] + 2) * (box_n[1] + 2) * (box_n[2] + 2);
+    auto box_index = [&](int i, int j, int k) { return padded.index({i - box_lo[0], j - box_lo[1], k - box_lo[2]}); };
+
     // Light terms: entry faces, projected area (m²) of the domain and of the box, photon counts.
     std::vector<EntrySampler> entry;
     std::vector<double> area, domain_area, power;
@@ -141,19 +150,24 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
 
     // Per-rank accumulators over the global grid: [cell][band] sum and sum of squares of the
     // batch estimates (and of the reduced tally).
-    std::vector<double> sum(static_cast<size_t>(cells * nb), 0.0), sumsq(sum.size(), 0.0);
+    std::vector<double> sum(static_cast<size_t>(pcells * nb), 0.0), sumsq(sum.size(), 0.0);
     std::vector<double> rsum, rsumsq;
     if (settings.tally_reduced) rsum.assign(sum.size(), 0.0), rsumsq.assign(sum.size(), 0.0);
     std::vector<Counters> batch_counters(static_cast<size_t>(B) * nb, Counters{});  // [batch][band]
     std::int64_t my_photons = 0, my_collisions = 0;
 
-    std::vector<std::vector<Voxel>> voxels(groups.size());
+    std::vector<VoxelGrid> voxels(groups.size());
     {
-        std::vector<float> kappa(static_cast<size_t>(cells));
+        std::vector<float> kappa(static_cast<size_t>(box_n[0]) * box_n[1] * box_n[2], 0.0f);
         for (size_t gi = 0; gi < groups.size(); ++gi) {
-            for (std::int64_t c = 0; c < cells; ++c)
-                kappa[static_cast<size_t>(c)] = static_cast<float>(rho[static_cast<size_t>(c)] * groups[gi].optics.sigma_t * h);
-            voxels[gi] = make_voxels(n, kappa);
+            for (int k = box_lo[2]; k < box_hi[2]; ++k)
+                for (int j = box_lo[1]; j < box_hi[1]; ++j)
+                    for (int i = box_lo[0]; i < box_hi[0]; ++i)
+                        kappa[(static_cast<size_t>(k - box_lo[2]) * box_n[1] + (j - box_lo[1])) * box_n[0] + (i - box_lo[0])] =
+                            static_cast<float>(rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] * groups[gi].optics.sigma_t * h);
+            voxels[gi] = make_voxels(box_n, kappa);
+            voxels[gi].origin = box_lo;
+            voxels[gi].domain = n;
         }
     }
     // Batch tallies, [cell][band in group], reused across batches: only the cells a batch
@@ -162,7 +176,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     // (every tallied segment adds a positive amount there; a repeated entry folds 0, harmlessly).
     size_t max_group = 1;
     for (const OpticsGroup& G : groups) max_group = std::max(max_group, G.bands.size());
-    std::vector<double> tally(static_cast<size_t>(cells) * max_group, 0.0), rtally;
+    std::vector<double> tally(static_cast<size_t>(pcells) * max_group, 0.0), rtally;
     if (settings.tally_reduced) rtally.assign(tally.size(), 0.0);
     std::vector<std::int64_t> touched;
     touched.reserve(static_cast<size_t>(std::min<std::int64_t>(cells, 1 << 20)));
@@ -173,7 +187,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
             const OpticsGroup& G = groups[gi];
             const int nbg = static_cast<int>(G.bands.size());
             touched.clear();
-            const GridView grid{n, periodic, voxels[gi].data()};
+            const GridView grid = voxels[gi].view(periodic);
             const PhotonOptics po{G.optics.albedo, G.optics.g, opt.roulette_weight};
             for (size_t l = 0; l < nl; ++l) {
                 if (n_light[l] == 0) continue;
@@ -192,23 +206,31 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                 PathTally pt;
                 double* t = tally.data();
                 double* rt = rtally.data();
-                auto add = [&](double* c, std::int64_t idx, double len) {
-                    if (c[strongest] == 0.0) touched.push_back(idx);
-                    for (int q = 0; q < nbg; ++q) c[q] += len * scale[q];
-                };
-                auto diffuse = [&](std::int64_t idx, double wl) { add(t + idx * nbg, idx, wl); };
-                for (std::int64_t p = lo; p < hi; ++p) {
-                    PathRng rng(opt.seed, static_cast<std::uint32_t>(l), static_cast<std::uint64_t>(p));
-                    PathState s;
-                    s.d = lights[l].w;
-                    entry[l].sample(rng, s);
-                    if (settings.tally_reduced) {
-                        trace_photon(grid, po, rng, s, pt, diffuse,
-                                     [&](std::int64_t idx, double len) { add(rt + idx * nbg, idx, len); });
-                    } else {
-                        trace_photon(grid, po, rng, s, pt, diffuse, [](std::int64_t, double) {});
+                // The photons of this light; NB > 0 fixes the band count at compile time (the
+                // per-segment tally is the inner loop), NB = 0 takes it from nbg.
+                auto trace_light = [&]<int NB>(std::integral_constant<int, NB>) {
+                    const int nq_bands = NB > 0 ? NB : nbg;
+                    auto add = [&](double* c, std::int64_t idx, double len) {
+                        if (c[strongest] == 0.0) touched.push_back(idx);
+                        for (int q = 0; q < nq_bands; ++q) c[q] += len * scale[q];
+                    };
+                    auto diffuse = [&](std::int64_t idx, double wl) { add(t + idx * nq_bands, idx, wl); };
+                    for (std::int64_t p = lo; p < hi; ++p) {
+                        PathRng rng(opt.seed, static_cast<std::uint32_t>(l), static_cast<std::uint64_t>(p));
+                        PathState s;
+                        s.d = lights[l].w;
+                        entry[l].sample(rng, s);
+                        if (settings.tally_reduced) {
+                            trace_photon(grid, po, rng, s, pt, diffuse,
+                                         [&](std::int64_t idx, double len) { add(rt + idx * nq_bands, idx, len); });
+                        } else {
+                            trace_photon(grid, po, rng, s, pt, diffuse, [](std::int64_t, double) {});
+                        }
                     }
-                }
+                };
+                if (nbg == 1) trace_light(std::integral_constant<int, 1>{});
+                else if (nbg == 3) trace_light(std::integral_constant<int, 3>{});
+                else trace_light(std::integral_constant<int, 0>{});
                 if (gi == 0) my_photons += hi - lo;  // a photon traced once per optics group
                 my_collisions += pt.collisions;
                 for (int q = 0; q < nbg; ++q) {
@@ -223,21 +245,29 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                     c[diffuse_volume] += P[q] * pt.diffuse_track * h;
                 }
             }
-            for (const std::int64_t c : touched)
+            const int* band = G.bands.data();
+            for (const std::int64_t c : touched) {
+                double* src = tally.data() + c * nbg;
+                double* s1 = sum.data() + c * nb;
+                double* s2 = sumsq.data() + c * nb;
                 for (int q = 0; q < nbg; ++q) {
-                    const size_t dst = static_cast<size_t>(c * nb + G.bands[static_cast<size_t>(q)]);
-                    const size_t src = static_cast<size_t>(c * nbg + q);
-                    const double v = tally[src];
-                    sum[dst] += v;
-                    sumsq[dst] += v * v;
-                    tally[src] = 0.0;
-                    if (settings.tally_reduced) {
-                        const double r = rtally[src];
-                        rsum[dst] += r;
-                        rsumsq[dst] += r * r;
-                        rtally[src] = 0.0;
+                    const double v = src[q];
+                    s1[band[q]] += v;
+                    s2[band[q]] += v * v;
+                    src[q] = 0.0;
+                }
+                if (settings.tally_reduced) {
+                    double* rsrc = rtally.data() + c * nbg;
+                    double* r1 = rsum.data() + c * nb;
+                    double* r2 = rsumsq.data() + c * nb;
+                    for (int q = 0; q < nbg; ++q) {
+                        const double r = rsrc[q];
+                        r1[band[q]] += r;
+                        r2[band[q]] += r * r;
+                        rsrc[q] = 0.0;
                     }
                 }
+            }
         }
     };
 
@@ -319,7 +349,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     for (int r = 0; r < P; ++r)
         for_each_cell(d.box_of(r), [&](int i, int j, int k) {
             if (!has_density(i, j, k)) return;
-            const size_t c = ((static_cast<size_t>(k) * n[1] + j) * n[0] + i) * nb;
+            const size_t c = static_cast<size_t>(box_index(i, j, k)) * nb;
             for (int q = 0; q < nb; ++q) {
                 send.push_back(sum[c + q]);
                 send.push_back(sumsq[c + q]);

@@ -1,22 +1,26 @@
 // Exact traversal of a piecewise-constant grid (3-D DDA) for the Monte Carlo paths. Lengths
 // are in cell edges (h = 1), extinction kappa in 1/cell (kappa_cells = rho sigma_t h). Between
 // calls a path state is a cell plus the position inside it as fractions in [0, 1]^3, so
-// rounding never accumulates along a long walk (each call restarts the DDA from the fractions),
-// and periodic x/y wrap by changing the cell index only. Pure kernels: no MPI, no allocation,
-// header-only.
+// rounding never accumulates from one flight to the next (each call restarts the DDA from the
+// fractions), and periodic x/y wrap by changing the cell index only. Pure kernels: no MPI, no
+// allocation, header-only.
 //
 // Within one call the walk is the incremental DDA of Amanatides & Woo (1987): t_next[a] is the
 // distance along the ray to the next cell face on axis a and grows by 1/|d_a| per crossing, so
-// a cell step costs one comparison chain and one add (no division, no per-axis fractions).
+// a cell step costs an argmin of three values (selects, no branches), one add and one index
+// step: no division, no per-axis fractions, no cell coordinates (recovered from the index when
+// the flight ends).
 //
 // Empty-space skipping: voxel.skip is the chessboard distance (in cells) from an empty cell to
-// the nearest non-empty cell or the domain's outside (0 for non-empty cells, see
-// empty_space.h). All cells within distance skip - 1 are empty and inside the domain, so the
-// walk crosses that whole cube in one step. Segments in empty cells (kappa = 0) are not
+// the nearest non-empty cell or the grid's outside (0 for non-empty cells, see empty_space.h).
+// All cells within distance skip - 1 are empty and inside the grid, so the walk crosses that
+// whole cube in one step (in t, like a unit step). Segments in empty cells (kappa = 0) are not
 // reported: nothing scatters there, and the fluence of empty cells is not estimated (it stays 0).
 //
 // Layout: kappa and skip are interleaved in one 8-byte Voxel so that a cell step reads one
-// cache line.
+// cache line, and the grid carries one ghost layer (skip = outside_skip) around it, so a unit
+// step needs no bounds test: stepping onto a ghost is the rare "left the grid" case. Cell
+// indices (GridView::index, the idx of on_segment) are indices into this padded array.
 #pragma once
 
 #include <algorithm>
@@ -24,30 +28,52 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <vector>
 
 #include "src/core/vec3.h"
 
 namespace nimbus::mc {
 
 // One cell of the replicated grid of an optics group.
+static_assert(std::numeric_limits<double>::is_iec559, "the walk relies on IEEE division by zero giving inf");
+
 struct Voxel {
     float kappa = 0.0f;       // extinction, 1/cell
     std::uint32_t skip = 0;   // chessboard distance to the nearest non-empty cell (0 if non-empty)
 };
 static_assert(sizeof(Voxel) == 8);
 
-// A read-only view of the replicated voxel grid of one optics group.
+// skip of the ghost layer around the domain.
+inline constexpr std::uint32_t outside_skip = 0xFFFFFFFFu;
+
+// A read-only view of the padded voxel grid of one optics group. The grid may cover only a
+// box of the domain (the bounding box of the non-empty cells, the whole extent along periodic
+// axes): outside it everything is empty, so a path that leaves the box never comes back, and
+// the walk reports the domain face that the straight path then leaves through.
 struct GridView {
-    std::array<int, 3> n{0, 0, 0};
+    std::array<int, 3> n{0, 0, 0};   // cells of the walked box
     std::array<bool, 3> periodic{false, false, false};
-    const Voxel* voxel = nullptr;  // x fastest, n[0]*n[1]*n[2] values (not owned)
+    const Voxel* voxel = nullptr;  // (n0+2)(n1+2)(n2+2) values, x fastest, ghost layer included (not owned)
+    std::array<int, 3> origin{0, 0, 0};  // the box's lowest cell in domain cells
+    std::array<int, 3> domain{0, 0, 0};  // the domain's cells (= n when the box is the domain)
+    // Index of cell c (domain cells 0..n-1 per axis; -1 and n are the ghost layer).
     std::int64_t index(const std::array<int, 3>& c) const {
-        return (static_cast<std::int64_t>(c[2]) * n[1] + c[1]) * n[0] + c[0];
+        const std::int64_t sy = n[0] + 2, sz = sy * (n[1] + 2);
+        return (static_cast<std::int64_t>(c[2]) + 1) * sz + (c[1] + 1) * sy + (c[0] + 1);
     }
 };
 
+// Owns the padded voxel array of one optics group (see make_voxels in empty_space.h).
+struct VoxelGrid {
+    std::array<int, 3> n{0, 0, 0};
+    std::vector<Voxel> voxel;  // padded, as GridView::voxel
+    std::array<int, 3> origin{0, 0, 0}, domain{0, 0, 0};  // as GridView
+    std::int64_t padded_cells() const { return static_cast<std::int64_t>(voxel.size()); }
+    GridView view(const std::array<bool, 3>& periodic) const { return {n, periodic, voxel.data(), origin, domain}; }
+};
+
 struct PathState {
-    std::array<int, 3> cell{0, 0, 0};
+    std::array<int, 3> cell{0, 0, 0};      // in the walked box (GridView::n)
     std::array<double, 3> frac{0, 0, 0};  // position inside the cell, [0, 1] per axis
     Vec3 d{0, 0, 1};                       // unit direction
 };
@@ -55,8 +81,38 @@ struct PathState {
 // Faces of the domain: 2 * axis + (1 if the high side), e.g. 4 = bottom (-z), 5 = top (+z).
 inline int face_index(int axis, bool high) { return 2 * axis + (high ? 1 : 0); }
 
+// floor(q) as an int, for |q| < 2^31 (exact; avoids a libm call on baseline x86-64).
+inline int floor_to_int(double q) {
+    const int i = static_cast<int>(q);
+    return q < static_cast<double>(i) ? i - 1 : i;
+}
+
+// The domain face that the straight path from s (on face `axis` of the walked box, leaving it)
+// leaves the domain through: the first non-periodic face along s.d (ties keep `axis`).
+inline int domain_exit_face(const GridView& g, const PathState& s, const double inv[3], int axis) {
+    const double dir[3] = {s.d.x, s.d.y, s.d.z};
+    int best = axis;
+    double t_best = std::numeric_limits<double>::infinity();
+    for (int a = -1; a < 3; ++a) {
+        const int b = a < 0 ? axis : a;  // the box's exit axis first, so that it wins ties
+        if ((a >= 0 && b == axis) || g.periodic[b] || dir[b] == 0) continue;
+        const double x = g.origin[b] + s.cell[b] + s.frac[b];
+        const double t = (dir[b] > 0 ? g.domain[b] - x : x) * inv[b];
+        if (t < t_best) t_best = t, best = b;
+    }
+    return face_index(best, dir[best] > 0);
+}
+
+// Cell coordinates of padded index idx (the inverse of GridView::index).
+inline std::array<int, 3> cell_of(const GridView& g, std::int64_t idx) {
+    const std::int64_t sy = g.n[0] + 2, sz = sy * (g.n[1] + 2);
+    const std::int64_t k = idx / sz, r = idx - k * sz, j = r / sy;
+    return {static_cast<int>(r - j * sy) - 1, static_cast<int>(j) - 1, static_cast<int>(k) - 1};
+}
+
 // Walks s along s.d until the optical depth `tau` is used up (returns -1; s is then at the
-// collision point) or the path leaves the domain (returns the face index it left through).
+// collision point) or the path leaves the domain (returns the face index it leaves the domain
+// through; s is then where it left the walked box, beyond which all is empty).
 // on_segment(cell_index, length) is called for every piece of path inside one cell, with
 // the length in cells, for cells with kappa > 0; the sum of kappa * length over the calls
 // equals the optical depth travelled (Beer-Lambert along a piecewise-constant medium).
@@ -65,12 +121,15 @@ inline int walk_optical_depth(const GridView& g, PathState& s, double tau, OnSeg
     constexpr double inf = std::numeric_limits<double>::infinity();
     const double dir[3] = {s.d.x, s.d.y, s.d.z};
     const double adir[3] = {std::abs(dir[0]), std::abs(dir[1]), std::abs(dir[2])};
-    const std::int64_t stride[3] = {1, g.n[0], static_cast<std::int64_t>(g.n[0]) * g.n[1]};
+    const std::int64_t sy = g.n[0] + 2, sz = sy * (g.n[1] + 2);
+    const std::int64_t stride[3] = {1, sy, sz};
     int step[3];
+    std::int64_t dstep[3];
     double inv[3], t_next[3];
     for (int a = 0; a < 3; ++a) {
         step[a] = dir[a] >= 0 ? 1 : -1;
-        inv[a] = dir[a] != 0 ? 1.0 / adir[a] : inf;
+        dstep[a] = dir[a] >= 0 ? stride[a] : -stride[a];
+        inv[a] = 1.0 / adir[a];  // IEEE: +inf for a component of 0
     }
     // Distance from the current point (t = 0) to the next face per axis.
     auto restart = [&] {
@@ -82,81 +141,87 @@ inline int walk_optical_depth(const GridView& g, PathState& s, double tau, OnSeg
         for (int a = 0; a < 3; ++a) {
             if (inv[a] == inf) continue;
             const double left = (t_next[a] - t) * adir[a];
-            s.frac[a] = std::clamp(step[a] > 0 ? 1.0 - left : left, 0.0, 1.0);
+            s.frac[a] = std::min(std::max(step[a] > 0 ? 1.0 - left : left, 0.0), 1.0);
         }
     };
     restart();
     double t = 0.0;
+    int last = 0;  // axis of the last unit step
     std::int64_t idx = g.index(s.cell);
     for (;;) {
-        const Voxel v = g.voxel[idx];
-        if (v.skip > 1) {
-            // Across the empty cube of half-width skip - 1 around this cell in one step; the
-            // cube lies inside the domain, so only the exit axis can leave or wrap.
-            set_frac(t);
-            const double extra = static_cast<double>(v.skip - 1);
-            double tc[3];
-            for (int a = 0; a < 3; ++a)
-                tc[a] = inv[a] == inf ? inf : ((step[a] > 0 ? 1.0 - s.frac[a] : s.frac[a]) + extra) * inv[a];
-            const int axis = tc[0] < tc[1] ? (tc[0] < tc[2] ? 0 : 2) : (tc[1] < tc[2] ? 1 : 2);
-            const double t_exit = tc[axis];
-            for (int a = 0; a < 3; ++a) {
-                if (a == axis) continue;
-                const double q = s.frac[a] + t_exit * dir[a];
-                const double fl = std::floor(q);
-                int c = s.cell[a] + static_cast<int>(fl);
-                double f = q - fl;
-                if (c >= g.n[a]) c = g.n[a] - 1, f = 1.0;
-                if (c < 0) c = 0, f = 0.0;
-                s.cell[a] = c;
-                s.frac[a] = f;
-            }
-            s.frac[axis] = step[axis] > 0 ? 0.0 : 1.0;
-            int c = s.cell[axis] + step[axis] * static_cast<int>(v.skip);
-            if (c < 0 || c >= g.n[axis]) {
-                if (!g.periodic[axis]) {
-                    s.frac[axis] = step[axis] > 0 ? 1.0 : 0.0;
-                    s.cell[axis] = std::clamp(c, 0, g.n[axis] - 1);
-                    return face_index(axis, step[axis] > 0);
+        // Unit steps, the hot loop: t_next in registers, the cell known only by its index.
+        Voxel v;
+        {
+            double tx = t_next[0], ty = t_next[1], tz = t_next[2];
+            for (;;) {
+                v = g.voxel[idx];
+                if (v.skip > 1) [[unlikely]] break;
+                // argmin of t_next with selects; ties go to the higher axis.
+                const bool y_le_x = !(tx < ty);
+                const double m01 = y_le_x ? ty : tx;
+                const bool z_le = !(m01 < tz);
+                const double t_exit = z_le ? tz : m01;
+                const int axis = z_le ? 2 : (y_le_x ? 1 : 0);
+                if (v.kappa > 0.0f) {
+                    const double kappa = v.kappa;
+                    const double seg = t_exit - t;
+                    const double depth = kappa * seg;
+                    if (depth >= tau) {
+                        const double len = tau / kappa;
+                        on_segment(idx, len);
+                        t_next[0] = tx, t_next[1] = ty, t_next[2] = tz;
+                        s.cell = cell_of(g, idx);
+                        set_frac(t + len);
+                        return -1;
+                    }
+                    tau -= depth;
+                    on_segment(idx, seg);
                 }
-                c = c < 0 ? g.n[axis] - 1 : 0;
+                t = t_exit;
+                const double t_after = t_exit + inv[axis];
+                tx = axis == 0 ? t_after : tx;
+                ty = axis == 1 ? t_after : ty;
+                tz = axis == 2 ? t_after : tz;
+                idx += dstep[axis];
+                last = axis;
             }
-            s.cell[axis] = c;
+            t_next[0] = tx, t_next[1] = ty, t_next[2] = tz;
+        }
+        if (v.skip == outside_skip) {
+            // The last unit step crossed the face of the grid on axis `last`: leave or wrap.
+            s.cell = cell_of(g, idx);
+            const int a = last;
+            if (!g.periodic[a]) {
+                s.cell[a] -= step[a];
+                set_frac(t);
+                s.frac[a] = step[a] > 0 ? 1.0 : 0.0;
+                return domain_exit_face(g, s, inv, a);
+            }
+            s.cell[a] = step[a] > 0 ? 0 : g.n[a] - 1;
             idx = g.index(s.cell);
-            restart();
-            t = 0.0;
             continue;
         }
-        const int axis = t_next[0] < t_next[1] ? (t_next[0] < t_next[2] ? 0 : 2) : (t_next[1] < t_next[2] ? 1 : 2);
-        const double t_exit = t_next[axis];
-        if (v.kappa > 0.0f) {
-            const double kappa = v.kappa;
-            const double seg = t_exit - t;
-            const double depth = kappa * seg;
-            if (depth >= tau) {
-                const double len = tau / kappa;
-                on_segment(idx, len);
-                set_frac(t + len);
-                return -1;
-            }
-            tau -= depth;
-            on_segment(idx, seg);
+        // Across the empty cube of half-width e = skip - 1 around this cell in one step, in
+        // t: the cube's exit face on axis a is e cells beyond t_next[a]. The path leaves it
+        // through the nearest (axis `exit`, at t_exit) into the cell `skip` cells on; on the
+        // other axes it crosses every face up to t_exit (at most e, the cube's own). The cube
+        // lies inside the grid, so only the exit axis can reach the ghost layer, which the
+        // unit loop then handles as any other step onto it.
+        const int e = static_cast<int>(v.skip) - 1;
+        double tc[3];
+        for (int a = 0; a < 3; ++a) tc[a] = t_next[a] + e * inv[a];  // inf stays inf
+        const int exit = tc[0] < tc[1] ? (tc[0] < tc[2] ? 0 : 2) : (tc[1] < tc[2] ? 1 : 2);
+        const double t_exit = tc[exit];
+        for (int a = 0; a < 3; ++a) {
+            if (a == exit || !(t_next[a] <= t_exit)) continue;
+            const int crossed = std::min(floor_to_int((t_exit - t_next[a]) * adir[a]) + 1, e);
+            t_next[a] += crossed * inv[a];
+            idx += crossed * dstep[a];
         }
         t = t_exit;
-        t_next[axis] += inv[axis];
-        const int c = s.cell[axis] + step[axis];
-        if (c < 0 || c >= g.n[axis]) {
-            if (!g.periodic[axis]) {
-                set_frac(t);
-                s.frac[axis] = step[axis] > 0 ? 1.0 : 0.0;
-                return face_index(axis, step[axis] > 0);
-            }
-            s.cell[axis] = c < 0 ? g.n[axis] - 1 : 0;
-            idx = g.index(s.cell);
-        } else {
-            s.cell[axis] = c;
-            idx += step[axis] * stride[axis];
-        }
+        t_next[exit] = t_exit + inv[exit];
+        idx += (e + 1) * dstep[exit];
+        last = exit;
     }
 }
 

@@ -68,7 +68,7 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
     if (ground && d.rank() == 0) log::warn("montecarlo image: background 'ground' is not modelled, rendered black");
 
     const std::vector<double> rho = allgather_global(m.rho, d);
-    std::vector<std::vector<Voxel>> voxels(static_cast<size_t>(nb));
+    std::vector<VoxelGrid> voxels(static_cast<size_t>(nb));
     for (int b = 0; b < nb; ++b) {
         std::vector<float> k(rho.size());
         for (size_t c = 0; c < rho.size(); ++c) k[c] = static_cast<float>(rho[c] * m.bands[static_cast<size_t>(b)].sigma_t * m.grid.h);
@@ -89,14 +89,14 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
             // alpha once per pixel, on the rank that owns its first sample
             PathState s;
             const double T = enter_domain(m.grid, cam.position(), cam.pixel_direction(px, py), s)
-                                 ? std::exp(-optical_depth({n, periodic, voxels[0].data()}, s))
+                                 ? std::exp(-optical_depth(voxels[0].view(periodic), s))
                                  : 1.0;
             alpha[pix] = 1.0 - T;
         }
         last_pixel = pix;
         for (int b = 0; b < nb; ++b) {
             PathRng rng(opt.seed, 0x80000000u + static_cast<std::uint32_t>(b), static_cast<std::uint64_t>(si));
-            const GridView g{n, periodic, voxels[static_cast<size_t>(b)].data()};
+            const GridView g = voxels[static_cast<size_t>(b)].view(periodic);
             const BandOptics& o = m.bands[static_cast<size_t>(b)];
             const Vec3 dir = cam.direction(px + rng.uniform(), py + rng.uniform());
             double L = 0.0;

@@ -4,7 +4,7 @@
 //   free path:   tau = -ln(xi), walked exactly through piecewise-constant kappa (grid_walk.h)
 //   collision:   absorbed += w (1 - a);  w *= a           (implicit capture)
 //   roulette:    if w < w_min: survive with probability 1/2 and w *= 2, else end
-//   scattering:  mu ~ HG(g) (hg_sample_mu), phi uniform; d = rotate_direction(d, mu, phi)
+//   scattering:  mu ~ HG(g) (hg_sample_mu), phi uniform; d = turn_direction(d, mu, cos phi, sin phi)
 //   estimator:   fluence_cell += w P len / V for every segment after the first scattering
 //                (the unscattered beam E0 T is the reduced fluence, not tallied here)
 //
@@ -19,6 +19,7 @@
 
 #include "solvers/montecarlo/grid_walk.h"
 #include "solvers/montecarlo/philox.h"
+#include "solvers/montecarlo/sincos.h"
 #include "src/physics/phase.h"
 
 namespace nimbus::mc {
@@ -27,7 +28,8 @@ namespace nimbus::mc {
 // non-empty cells; the domain along periodic axes) that the beam crosses inward, chosen with
 // probability |n·w| area / A_projected and uniformly over the face (grid units). Rays that miss
 // the box cross only empty cells and leave unscattered, so starting on the box is exact; the
-// caller books the rest of the domain's projected area as direct escape.
+// caller books the rest of the domain's projected area as direct escape. sample() gives the
+// cell relative to the box (the walk's grid covers only the box, grid_walk.h).
 struct EntrySampler {
     int nfaces = 0;
     int face[3]{};                 // face indices (grid_walk.h numbering)
@@ -62,16 +64,26 @@ struct EntrySampler {
         const bool high = face[f] % 2 == 1;
         for (int a = 0; a < 3; ++a) {
             if (a == axis) {
-                s.cell[a] = high ? hi[a] - 1 : lo[a];
+                s.cell[a] = high ? hi[a] - 1 - lo[a] : 0;
                 s.frac[a] = high ? 1.0 : 0.0;
             } else {
                 const double u = lo[a] + rng.uniform() * (hi[a] - lo[a]);
-                s.cell[a] = std::min(static_cast<int>(u), hi[a] - 1);
-                s.frac[a] = u - s.cell[a];
+                const int c = std::min(static_cast<int>(u), hi[a] - 1);
+                s.frac[a] = u - c;
+                s.cell[a] = c - lo[a];
             }
         }
     }
 };
+
+// The direction at polar cosine mu and azimuth (cos_phi, sin_phi) around unit w: rotate_direction
+// of src/physics/phase.h with the azimuth's cosine and sine given (sincos.h computes them).
+inline Vec3 turn_direction(const Vec3& w, double mu, double cos_phi, double sin_phi) {
+    Vec3 u, v;
+    orthonormal_basis(w, u, v);
+    const double s = std::sqrt(std::max(0.0, 1.0 - mu * mu));
+    return u * (s * cos_phi) + v * (s * sin_phi) + w * mu;
+}
 
 // Per-path outcome in photon-weight units (the caller scales by the photon power).
 struct PathTally {
@@ -124,8 +136,9 @@ inline void trace_photon(const GridView& grid, const PhotonOptics& o, PathRng& r
             }
         }
         const double mu = hg_sample_mu(o.g, rng.uniform());
-        const double phi = 2.0 * std::numbers::pi * rng.uniform();
-        s.d = rotate_direction(s.d, mu, phi);
+        double cos_phi, sin_phi;
+        sincos_2pi(rng.uniform(), cos_phi, sin_phi);  // phi = 2π xi
+        s.d = turn_direction(s.d, mu, cos_phi, sin_phi);
     }
 }
 
