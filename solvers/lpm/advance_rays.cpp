@@ -1,0 +1,18 @@
+#include "solvers/lpm/segment_kernel.h"
+
+namespace nimbus::lpm {
+
+__attribute__((target_clones("avx2", "default"))) void advance_rays(int n, double* __restrict L,
+                                                                            const double* __restrict K,
+                                                                            const double* __restrict Us,
+                                                                            double* __restrict phi, double len,
+                                                                            double w) {
+    for (int i = 0; i < n; ++i) {
+        const SegmentWeights sw = segment_weights(K[i] * len);
+        const double u = Us[i] * len;
+        phi[i] += w * (L[i] * sw.f1 + u * sw.f2);
+        L[i] = L[i] * sw.e + u * sw.f1;
+    }
+}
+
+}  // namespace nimbus::lpm

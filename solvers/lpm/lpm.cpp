@@ -1,0 +1,75 @@
+#include "solvers/lpm/lpm.h"
+
+#include <algorithm>
+#include <numeric>
+
+#include "solvers/lpm/angular.h"
+#include "solvers/lpm/solve_band.h"
+#include "src/core/error.h"
+#include "src/core/log.h"
+#include "src/core/progress.h"
+
+namespace nimbus {
+namespace {
+
+class LightPropagationMaps final : public ScatteringModel {
+public:
+    explicit LightPropagationMaps(const LpmOptions& o) : opt_(o) { opt_.validate(); }
+    std::string name() const override { return "lpm"; }
+    nlohmann::json options() const override {
+        return {{"p", opt_.p}, {"refinement", opt_.refinement}, {"k", opt_.k},
+                {"solution_bins", opt_.solution_bins}, {"iterations", opt_.iterations}, {"epsilon", opt_.epsilon}};
+    }
+
+    void solve(const SolveContext& ctx, DiffuseSolution& out) override {
+        const Decomposition& d = ctx.decomp;
+        check_collective(d.comm(), d.is_slab_z() && !d.periodic(2),
+                         "model lpm needs slabs along z (grid.process_grid = [1, 1, P]) and z not periodic");
+        check_collective(d.comm(), ctx.medium.rho.ghost() == 1 && ctx.medium.rho.owned() == d.local(),
+                         "model lpm: density must cover the rank's box with one ghost layer");
+        ScopedTimer timer(ctx.report, "lpm");
+        const lpm::Angular ang(opt_.p, opt_.k);
+        const int nb = ctx.medium.nbands();
+        Progress progress("lpm map sweeps", static_cast<double>(nb * opt_.iterations * 6), d.rank() == 0);
+        out = DiffuseSolution{};
+        nlohmann::json bands = nlohmann::json::array();
+        for (int b = 0; b < nb; ++b) {
+            lpm::BandResult r = lpm::solve_band(d, ctx.medium, ctx.light, b, opt_, ang, &progress);
+            const double total = std::accumulate(r.sweep_seconds.begin(), r.sweep_seconds.end(), 0.0);
+            const double mean = r.sweep_seconds.empty() ? 0.0 : total / static_cast<double>(r.sweep_seconds.size());
+            bands.push_back({{"band", ctx.medium.bands[static_cast<size_t>(b)].name},
+                             {"iterations", r.iterations},
+                             {"max_U_relative", r.max_U},
+                             {"seconds_per_map_sweep", mean},
+                             {"wait_seconds", r.wait_seconds},
+                             {"source_W", r.source},
+                             {"escaped_W", r.escaped},
+                             {"absorbed_W", r.absorbed},
+                             {"unpropagated_W", r.remaining},
+                             {"truncated_W", r.truncated}});
+            if (d.rank() == 0)
+                log::info("lpm band {}: {} iterations, max U {:.3g} of the first-scatter maximum, {:.3g} s per map sweep, "
+                          "unpropagated {:.3g} of the scattered power",
+                          b, r.iterations, r.max_U.empty() ? 0.0 : r.max_U.back(), mean,
+                          r.source > 0 ? r.remaining / r.source : 0.0);
+            out.fluence.push_back(std::move(r.fluence));
+            if (opt_.solution_bins == 4) out.flux.push_back(std::move(r.flux));
+        }
+        progress.finish();
+        ctx.report.values()["lpm"] = {{"options", options()},
+                                      {"map_directions", ang.map_bins()},
+                                      {"coarse_bins", ang.coarse_bins()},
+                                      {"bands", bands}};
+    }
+
+private:
+    LpmOptions opt_;
+};
+
+}  // namespace
+
+std::unique_ptr<ScatteringModel> make_lpm_model(const LpmOptions& opt) {
+    return std::make_unique<LightPropagationMaps>(opt);
+}
+
+}  // namespace nimbus

@@ -1,0 +1,123 @@
+#include "solvers/lpm/solve_band.h"
+
+#include <mpi.h>
+
+#include <algorithm>
+
+#include "solvers/lpm/map_sweep.h"
+#include "src/core/halo.h"
+#include "src/physics/lights.h"
+
+namespace nimbus::lpm {
+namespace {
+
+double global_sum(double v, MPI_Comm c) {
+    MPI_Allreduce(MPI_IN_PLACE, &v, 1, MPI_DOUBLE, MPI_SUM, c);
+    return v;
+}
+double global_max(double v, MPI_Comm c) {
+    MPI_Allreduce(MPI_IN_PLACE, &v, 1, MPI_DOUBLE, MPI_MAX, c);
+    return v;
+}
+
+}  // namespace
+
+BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransport& light, int band,
+                      const LpmOptions& opt, const Angular& ang, Progress* progress) {
+    const BandOptics& bo = m.bands[static_cast<size_t>(band)];
+    const Box& own = d.local();
+    const int nm = ang.coarse_bins();
+    const double V = m.grid.cell_volume();
+
+    // Extinction on the owned box and its ghosts (the maps read the neighbours' ghost planes).
+    Field<double> kappa(own, 1, 1, 0.0);
+    for (size_t i = 0; i < kappa.size(); ++i) kappa.data()[i] = m.rho.data()[i] * bo.sigma_t;
+
+    const std::vector<double> P = ang.form_factors(bo.g);
+    std::vector<double> deposit(P.size());
+    for (int n = 0; n < ang.map_bins(); ++n)
+        for (int c = 0; c < nm; ++c)
+            deposit[static_cast<size_t>(n * nm + c)] = P[static_cast<size_t>(n * nm + c)] / ang.coarse_solid_angle(c);
+
+    // First-scatter source, split over the coarse bins by the exact beam factors.
+    Field<double> U(own, 1, nm, 0.0);
+    double source = 0.0;
+    for (size_t l = 0; l < light.lights.size(); ++l) {
+        const DirectionalLight& dl = light.lights[l];
+        const double E0 = band_value(dl.E0, band);
+        if (E0 == 0.0) continue;
+        const std::vector<double> bf = ang.beam_factors(bo.g, dl.w);
+        for_each_cell(own, [&](int i, int j, int k) {
+            const double q = kappa(i, j, k) * bo.albedo * E0 *
+                             light.transmittance(static_cast<int>(l), bo.sigma_t, i, j, k);
+            if (q == 0.0) return;
+            source += q * V;
+            double* u = &U(i, j, k);
+            for (int c = 0; c < nm; ++c) u[c] += q * bf[static_cast<size_t>(c)] / ang.coarse_solid_angle(c);
+        });
+    }
+    double u_max0 = 0.0;
+    for_each_cell(own, [&](int i, int j, int k) {
+        for (int c = 0; c < nm; ++c) u_max0 = std::max(u_max0, U(i, j, k, c));
+    });
+    u_max0 = global_max(u_max0, d.comm());
+
+    BandResult r;
+    r.source = global_sum(source, d.comm());
+    Field<double> fluence(own, 1, 1, 0.0);
+    Field<double> flux;
+    if (opt.solution_bins == 4) flux = Field<double>(own, 1, 3, 0.0);
+
+    MapInputs in;
+    in.angular = &ang;
+    in.refinement = opt.refinement;
+    in.h = m.grid.h;
+    in.kappa = &kappa;
+    in.albedo = bo.albedo;
+    in.deposit = &deposit;
+    in.flux = opt.solution_bins == 4;
+    MapAccumulators acc;
+    acc.U = &U;
+    acc.fluence = &fluence;
+    acc.flux = in.flux ? &flux : nullptr;
+
+    for (int it = 0; it < opt.iterations && u_max0 > 0.0; ++it) {
+        for (int f : kMapOrder) {
+            const double t0 = MPI_Wtime();
+            sweep_map(d, f, in, acc);
+            r.sweep_seconds.push_back(MPI_Wtime() - t0);
+            if (progress) progress->update(static_cast<double>(band * opt.iterations * 6) + static_cast<double>(r.sweep_seconds.size()));
+        }
+        ++r.iterations;
+        double u_max = 0.0;
+        for_each_cell(own, [&](int i, int j, int k) {
+            for (int c = 0; c < nm; ++c) u_max = std::max(u_max, U(i, j, k, c));
+        });
+        r.max_U.push_back(global_max(u_max, d.comm()) / u_max0);
+        if (r.max_U.back() < opt.epsilon) break;
+    }
+
+    double absorbed = 0.0, remaining = 0.0;
+    for_each_cell(own, [&](int i, int j, int k) {
+        absorbed += V * (1.0 - bo.albedo) * kappa(i, j, k) * fluence(i, j, k);
+        for (int c = 0; c < nm; ++c) remaining += V * ang.coarse_solid_angle(c) * U(i, j, k, c);
+    });
+    r.absorbed = global_sum(absorbed, d.comm());
+    r.remaining = global_sum(remaining, d.comm());
+    for (int a = 0; a < 3; ++a)
+        for (int side = 0; side < 2; ++side) {
+            r.escaped_face[a][side] = global_sum(acc.escaped[a][side], d.comm());
+            r.escaped += r.escaped_face[a][side];
+        }
+    r.truncated = global_sum(acc.truncated, d.comm());
+    r.wait_seconds = acc.wait_seconds;
+    exchange_halo(fluence, d);
+    r.fluence = std::move(fluence);
+    if (in.flux) {
+        exchange_halo(flux, d);
+        r.flux = std::move(flux);
+    }
+    return r;
+}
+
+}  // namespace nimbus::lpm

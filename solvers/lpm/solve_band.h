@@ -1,0 +1,44 @@
+// The light propagation maps iteration for one wavelength band (Fattal 2009 §3.4):
+//   U^m   <- first-scatter source: kappa a Σ_l E0_l T_l ∫_{Ω^m} p(ω·w_l) dω / |Ω^m|  (W/(m³ sr))
+//   repeat until max U < epsilon · max(first-scatter source) or `iterations` rounds:
+//     for each map -Z, +Z, +X, -X, +Y, -Y: sweep_map (snapshot Ũ, propagate, deposit)
+// The reduced sun E0 T is not propagated (it is fluence_reduced); only light scattered at
+// least once is, so fluence = ∫ I_d dω (DESIGN §1). Collective over d.comm(); slabs along z.
+//
+// Energy bookkeeping (watts, global sums), exact to round-off for any iteration count:
+//   source = Σ_cells V kappa a Σ_l E0_l T_l  =  escaped + absorbed + remaining + truncated,
+//   absorbed = Σ V (1 - a) kappa φ,  remaining = Σ V Σ_m |Ω^m| U^m (unpropagated at the end).
+#pragma once
+
+#include <vector>
+
+#include "solvers/lpm/angular.h"
+#include "src/core/decomposition.h"
+#include "src/core/field.h"
+#include "src/core/progress.h"
+#include "src/model/model.h"
+#include "src/model/options.h"
+#include "src/scene/medium.h"
+
+namespace nimbus::lpm {
+
+struct BandResult {
+    Field<double> fluence;        // ∫ I_d dω, W/m², owned + 1 ghost (halo-exchanged)
+    Field<double> flux;           // F, 3 comps, owned + 1 ghost; empty unless solution_bins == 4
+    int iterations = 0;
+    std::vector<double> max_U;    // after each iteration, relative to the first-scatter maximum
+    std::vector<double> sweep_seconds;  // wall time of every map sweep (this rank)
+    double wait_seconds = 0.0;    // blocked on neighbours (this rank)
+    double source = 0.0, escaped = 0.0, absorbed = 0.0, remaining = 0.0;  // W, global
+    double escaped_face[3][2] = {};  // W through the domain face [axis][low, high], global
+    double truncated = 0.0;          // W dropped by cyclic sweeps of periodic axes, global
+};
+
+// The map order of one iteration: faces -Z, +Z, +X, -X, +Y, -Y.
+inline constexpr int kMapOrder[6] = {5, 4, 0, 1, 2, 3};
+
+// Collective. m.rho must have its ghost layer exchanged; light.tau_rho per light term.
+BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransport& light, int band,
+                      const LpmOptions& opt, const Angular& ang, Progress* progress = nullptr);
+
+}  // namespace nimbus::lpm

@@ -1,0 +1,109 @@
+// Angular discretization of the maps: exact solid angles (Σ = 4π), the nesting rule, form
+// factors that conserve energy exactly (rows sum to 1; isotropic rows are |Ω^m|/4π), HG
+// form factors whose mean cosine approaches g, and beam factors that sum to 1.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "solvers/lpm/angular.h"
+#include "src/physics/phase.h"
+#include "tests/support/mpi_test.h"
+
+namespace nimbus::lpm {
+namespace {
+
+constexpr double kFourPi = 4.0 * std::numbers::pi;
+
+TEST(LpmAngular, SolidAnglesSumToFourPiAndNest) {
+    for (int p : {1, 3, 5, 9}) {
+        for (int k : {1, 3}) {
+            if (p % k) continue;
+            const Angular a(p, k);
+            double sn = 0.0, sm = 0.0;
+            for (int n = 0; n < a.map_bins(); ++n) sn += a.solid_angle(n);
+            for (int m = 0; m < a.coarse_bins(); ++m) sm += a.coarse_solid_angle(m);
+            EXPECT_NEAR(sn, kFourPi, 1e-13);
+            EXPECT_NEAR(sm, kFourPi, 1e-13);
+            // Nesting: the map bins of each coarse bin tile it exactly.
+            std::vector<double> per(static_cast<size_t>(a.coarse_bins()), 0.0);
+            for (int n = 0; n < a.map_bins(); ++n) {
+                per[static_cast<size_t>(a.coarse_of(n))] += a.solid_angle(n);
+                EXPECT_EQ(a.coarse_of(n) / (k * k), n / (p * p));  // same face
+                EXPECT_GT(dot(a.direction(n), a.mean_direction(n)), 0.99 * norm(a.mean_direction(n)));
+            }
+            for (int m = 0; m < a.coarse_bins(); ++m) EXPECT_NEAR(per[static_cast<size_t>(m)], a.coarse_solid_angle(m), 1e-14);
+        }
+    }
+    // A face is 4π/6 and the mean direction of the whole sphere vanishes.
+    const Angular a(3, 1);
+    EXPECT_NEAR(a.coarse_solid_angle(0), kFourPi / 6.0, 1e-14);
+    Vec3 mean;
+    for (int n = 0; n < a.map_bins(); ++n) mean += a.solid_angle(n) * a.mean_direction(n);
+    EXPECT_LT(norm(mean), 1e-13);
+}
+
+TEST(LpmAngular, IsotropicFormFactorsConserveEnergyExactly) {
+    const Angular a(5, 1);
+    const std::vector<double> P = a.form_factors(0.0);
+    const int nm = a.coarse_bins();
+    for (int n = 0; n < a.map_bins(); ++n) {
+        double row = 0.0;
+        for (int m = 0; m < nm; ++m) {
+            row += P[static_cast<size_t>(n * nm + m)];
+            EXPECT_NEAR(P[static_cast<size_t>(n * nm + m)], a.coarse_solid_angle(m) / kFourPi, 1e-15);
+        }
+        EXPECT_NEAR(row, 1.0, 1e-15);
+    }
+}
+
+// Rows sum to 1 (energy) and the mean scattering cosine Σ_m P^{n,m} ω_n·ω̄_m approaches g as
+// the coarse bins are refined (it is exactly g only for infinitely fine bins).
+TEST(LpmAngular, HenyeyGreensteinFormFactors) {
+    for (double g : {0.5, 0.85, 0.95}) {
+        double err_prev = 1.0;
+        for (int k : {1, 3, 9}) {
+            const Angular a(9, k);
+            const std::vector<double> P = a.form_factors(g);
+            const int nm = a.coarse_bins();
+            // Mean direction of each coarse bin.
+            std::vector<Vec3> wm(static_cast<size_t>(nm));
+            for (int n = 0; n < a.map_bins(); ++n)
+                wm[static_cast<size_t>(a.coarse_of(n))] += a.solid_angle(n) * a.mean_direction(n);
+            for (int m = 0; m < nm; ++m) wm[static_cast<size_t>(m)] = wm[static_cast<size_t>(m)] / a.coarse_solid_angle(m);
+            double worst_row = 0.0, worst_g = 0.0;
+            for (int n = 0; n < a.map_bins(); ++n) {
+                double row = 0.0, mu = 0.0;
+                for (int m = 0; m < nm; ++m) {
+                    const double v = P[static_cast<size_t>(n * nm + m)];
+                    EXPECT_GE(v, 0.0);
+                    row += v;
+                    mu += v * dot(a.mean_direction(n), wm[static_cast<size_t>(m)]);
+                }
+                worst_row = std::max(worst_row, std::abs(row - 1.0));
+                worst_g = std::max(worst_g, std::abs(mu - g));
+            }
+            EXPECT_LT(worst_row, 1e-14);
+            EXPECT_LT(worst_g, err_prev + 1e-12) << "g " << g << " k " << k;
+            err_prev = worst_g;
+            if (test::world_rank() == 0) std::printf("    g %.2f  k %d: max |mean cosine - g| over map bins %.4f\n", g, k, worst_g);
+        }
+    }
+}
+
+TEST(LpmAngular, BeamFactorsSumToOne) {
+    const Angular a(5, 5);
+    const Vec3 w = normalized(Vec3{0.3, 0.2, -1.0});
+    for (double g : {0.0, 0.85}) {
+        const std::vector<double> b = a.beam_factors(g, w);
+        double sum = 0.0;
+        Vec3 mean;
+        for (int n = 0; n < a.map_bins(); ++n) mean += a.mean_direction(n) * (b[static_cast<size_t>(a.coarse_of(n))] * a.solid_angle(n) / a.coarse_solid_angle(a.coarse_of(n)));
+        for (double v : b) sum += v;
+        EXPECT_NEAR(sum, 1.0, 1e-14);
+        EXPECT_NEAR(dot(mean, w), g, 0.05);  // first moment ≈ g w (k = 5: 150 coarse bins)
+    }
+}
+
+}  // namespace
+}  // namespace nimbus::lpm
