@@ -9,11 +9,34 @@
 
 namespace nimbus {
 
+void FragmentBuffer::push_floats(const double* v) {
+    for (int b = 0; b < nbands_; ++b) words_.push_back(std::bit_cast<std::uint32_t>(static_cast<float>(v[b])));
+}
+
+void FragmentBuffer::pad_held() {
+    if (held_) words_.insert(words_.end(), static_cast<size_t>(3 * nbands_ + 1), 0u);
+}
+
 void FragmentBuffer::add_segment(std::int32_t pixel, std::int32_t key, const double* C, const double* T) {
     words_.push_back(static_cast<std::uint32_t>(pixel));
     words_.push_back(static_cast<std::uint32_t>(key));
-    for (int b = 0; b < nbands_; ++b) words_.push_back(std::bit_cast<std::uint32_t>(static_cast<float>(C[b])));
-    for (int b = 0; b < nbands_; ++b) words_.push_back(std::bit_cast<std::uint32_t>(static_cast<float>(T[b])));
+    push_floats(C);
+    push_floats(T);
+    pad_held();
+}
+
+void FragmentBuffer::add_segment_held(std::int32_t pixel, std::int32_t key, const double* C,
+                                      const double* T, const double* A, const double* H_spec,
+                                      const double* H_last, bool has_spec, bool has_sample) {
+    if (!held_) throw Error("render: FragmentBuffer without held source terms");
+    words_.push_back(static_cast<std::uint32_t>(pixel));
+    words_.push_back(static_cast<std::uint32_t>(key));
+    push_floats(C);
+    push_floats(T);
+    push_floats(A);
+    push_floats(H_spec);
+    push_floats(H_last);
+    words_.push_back((has_spec ? 1u : 0u) | (has_sample ? 2u : 0u));
 }
 
 void FragmentBuffer::add_background(std::int32_t pixel, const double* L) {
@@ -21,6 +44,7 @@ void FragmentBuffer::add_background(std::int32_t pixel, const double* L) {
     words_.push_back(static_cast<std::uint32_t>(kBackgroundKey));
     for (int b = 0; b < nbands_; ++b) words_.push_back(std::bit_cast<std::uint32_t>(static_cast<float>(L[b])));
     for (int b = 0; b < nbands_; ++b) words_.push_back(std::bit_cast<std::uint32_t>(0.0f));
+    pad_held();
 }
 
 namespace {
@@ -104,20 +128,23 @@ Image composite_image(const FragmentBuffer& local, int width, int height,
         for (size_t r = 0; r < nrec; ++r) order[fill[recv[r * rw] - first_pixel]++] = r;
     }
     auto key = [&](size_t r) { return static_cast<std::int32_t>(recv[r * rw + 1]); };
-    // Band values of record r: which = 0 for C (or the ground radiance), 1 for T.
+    // Band values of record r: which = 0 for C (or the ground radiance), 1 for T, and with a
+    // held source 2 for A, 3 for H_spec, 4 for H_last.
     auto values = [&](size_t r, int which, float* out) {
         for (int b = 0; b < nb; ++b)
             out[b] = std::bit_cast<float>(recv[r * rw + 2 + static_cast<size_t>(which * nb + b)]);
     };
 
+    const bool held = local.held_source();
+    auto flags = [&](size_t r) { return recv[r * rw + 2 + static_cast<size_t>(5 * nb)]; };
     std::vector<float> rows(npix * 4);
-    double C[3], T[3];
+    double C[3], T[3], H[3];
     for (size_t p = 0; p < npix; ++p) {
         std::sort(order.begin() + static_cast<std::ptrdiff_t>(start[p]),
                   order.begin() + static_cast<std::ptrdiff_t>(start[p + 1]),
                   [&](size_t a, size_t b) { return key(a) < key(b); });
-        for (int b = 0; b < nb; ++b) { C[b] = 0.0; T[b] = 1.0; }
-        bool ground = false;
+        for (int b = 0; b < nb; ++b) { C[b] = 0.0; T[b] = 1.0; H[b] = 0.0; }
+        bool ground = false, H_set = false;
         double T_volume[3];
         for (size_t q = start[p]; q < start[p + 1]; ++q) {
             const size_t r = order[q];
@@ -130,6 +157,19 @@ Image composite_image(const FragmentBuffer& local, int width, int height,
                 break;
             }
             values(r, 1, t);
+            if (held) {
+                float a[3], hs[3], hl[3];
+                values(r, 2, a);
+                values(r, 3, hs);
+                values(r, 4, hl);
+                const bool has_spec = (flags(r) & 1u) != 0, has_sample = (flags(r) & 2u) != 0;
+                for (int b = 0; b < nb; ++b) {
+                    const double h_use = H_set ? H[b] : (has_spec ? hs[b] : 0.0);
+                    C[b] += T[b] * a[b] * h_use;
+                    H[b] = has_sample ? hl[b] : h_use;
+                }
+                H_set = H_set || has_spec || has_sample;
+            }
             composite_over(nb, C, T, c, t);
         }
         if (!ground) {

@@ -8,6 +8,11 @@
 // MPI_Alltoallv; the owner composites each pixel front to back with the "over" operator
 //   C = C_front + T_front C_back,   T = T_front T_back            (Max 1995 §4.1)
 // and finally adds the background: the ground fragment's radiance, or else `sky`, times T.
+// With a view-path source (view_source.h, march_source.h) each segment also carries A_b,
+// H_spec,b, H_last,b and two flags; per pixel the compositor carries the held source value H
+// front to back (H unset before the first piece with medium):
+//   H_use = H set ? H : (piece has medium ? H_spec : 0);  C += T_front (c + A H_use);
+//   then H = piece has a sample point ? H_last : H_use.
 // Rank 0 gathers the rows (MPI_Gatherv). Image: bands -> RGB (1 band: gray, 3 bands: rgb),
 // alpha = 1 - T averaged over bands (the volume's opacity; the background does not count).
 #pragma once
@@ -26,19 +31,30 @@ class FragmentBuffer {
 public:
     static constexpr std::int32_t kBackgroundKey = std::numeric_limits<std::int32_t>::max();
 
-    explicit FragmentBuffer(int nbands) : nbands_(nbands) {}
+    // held_source: records carry the view-path source terms (add_segment_held).
+    explicit FragmentBuffer(int nbands, bool held_source = false)
+        : nbands_(nbands), held_(held_source) {}
     // A piece of pixel `pixel`'s view ray (row-major pixel index); C, T: nbands values each.
     void add_segment(std::int32_t pixel, std::int32_t key, const double* C, const double* T);
+    // As add_segment, plus A, H_spec, H_last (nbands each) and the flags has_spec, has_sample.
+    void add_segment_held(std::int32_t pixel, std::int32_t key, const double* C, const double* T,
+                          const double* A, const double* H_spec, const double* H_last,
+                          bool has_spec, bool has_sample);
     // The opaque background seen by pixel `pixel` (radiance L per band), behind every segment.
     void add_background(std::int32_t pixel, const double* L);
 
     int nbands() const { return nbands_; }
-    int record_words() const { return 2 + 2 * nbands_; }  // pixel, key, C[nb], T[nb]
+    bool held_source() const { return held_; }
+    // pixel, key, C[nb], T[nb] (+ A[nb], H_spec[nb], H_last[nb], flags when held_source)
+    int record_words() const { return 2 + 2 * nbands_ + (held_ ? 3 * nbands_ + 1 : 0); }
     std::size_t size() const { return words_.size() / static_cast<size_t>(record_words()); }
     const std::vector<std::uint32_t>& words() const { return words_; }
 
 private:
+    void push_floats(const double* v);
+    void pad_held();
     int nbands_;
+    bool held_ = false;
     std::vector<std::uint32_t> words_;
 };
 

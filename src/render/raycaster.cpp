@@ -21,7 +21,9 @@
 #include "src/render/composite.h"
 #include "src/render/ground.h"
 #include "src/render/march.h"
+#include "src/render/march_source.h"
 #include "src/render/ray_box.h"
+#include "src/render/view_depth.h"
 #include "src/render/view_volume.h"
 
 namespace nimbus {
@@ -82,72 +84,168 @@ struct MarchStats {
     long fragments = 0, samples = 0, ground = 0;
 };
 
+// Per rank: the pixels and ray lattices of its box. setup_ray gives pixel (x, y)'s step range
+// [m0, m1) on this rank (empty when the ray misses the occupied box).
+struct RaySetup {
+    const Camera& cam;
+    const MarchView& view;
+    const Box& live;
+    bool any_live = false;
+    Vec3 o, dom_lo, dom_hi, loc_lo, loc_hi;
+    double ds_nominal = 1.0;
+
+    RaySetup(const Camera& c, const ViewVolume& vol, const MarchView& v, const RenderSpec& rs)
+        : cam(c), view(v), live(vol.occupied_cells) {
+        const Grid& g = vol.grid;
+        o = cam.position();
+        dom_lo = g.origin;
+        dom_hi = g.upper();
+        // Only steps in the occupied part of the rank's box can contribute: the others sample
+        // empty blocks. The box is grown by a hair so that rounding never drops a step: the
+        // candidate range is padded anyway and then trimmed by the exact cell test, which (the
+        // occupied box lying inside the owned box) also makes the ranks' pieces disjoint.
+        any_live = !live.empty();
+        const double eps = 1e-9 * g.h;
+        for (int a = 0; a < 3; ++a) {
+            loc_lo[a] = g.origin[a] + live.lo[a] * g.h - eps;
+            loc_hi[a] = g.origin[a] + live.hi[a] * g.h + eps;
+        }
+        ds_nominal = rs.step * g.h;
+    }
+
+    bool setup_ray(int x, int y, RaySteps& r, int& m0, int& m1) const {
+        r.o = o;
+        r.d = cam.pixel_direction(x, y);
+        double tg0, tg1, ta, tb;
+        if (!(any_live && intersect_box(o, r.d, loc_lo, loc_hi, ta, tb) && tb > 0.0 &&
+              intersect_box(o, r.d, dom_lo, dom_hi, tg0, tg1) && tg1 > 0.0))
+            return false;
+        r.t_enter = std::max(tg0, 0.0);
+        const double chord = tg1 - r.t_enter;
+        r.n = std::max(1, static_cast<int>(std::ceil(chord / ds_nominal)));
+        r.ds = chord / r.n;
+        for (int a = 0; a < 3; ++a)
+            r.inv_d[a] = r.d[a] != 0.0 ? 1.0 / r.d[a] : std::numeric_limits<double>::infinity();
+        // Candidate steps: midpoints within [ta, tb], padded by one step each side.
+        const double first = std::ceil((ta - r.t_enter) / r.ds - 0.5) - 1.0;
+        const double last = std::floor((tb - r.t_enter) / r.ds - 0.5) + 2.0;
+        m0 = static_cast<int>(std::clamp(first, 0.0, static_cast<double>(r.n)));
+        m1 = static_cast<int>(std::clamp(last, 0.0, static_cast<double>(r.n)));
+        while (m0 < m1 && !step_in(r, view, m0, live)) ++m0;
+        while (m1 > m0 && !step_in(r, view, m1 - 1, live)) --m1;
+        return m0 < m1;
+    }
+};
+
 // Marches every pixel's ray through this rank's box and shades the ground it owns.
 MarchStats march_image(const Camera& cam, const ViewVolume& vol, const GroundShading& ground,
                        const RenderSpec& rs, FragmentBuffer& out) {
     const MarchView view = make_march_view(vol);
     const int nb = vol.nbands;
     const MarchFn march = select_march(nb, rs.mode != RenderMode::emission);
-    const Grid& g = vol.grid;
-    const Vec3 o = cam.position();
-    const Vec3 dom_lo = g.origin, dom_hi = g.upper();
-    // Only steps in the occupied part of the rank's box can contribute: the others sample
-    // empty blocks. The box is grown by a hair so that rounding never drops a step: the
-    // candidate range is padded anyway and then trimmed by the exact cell test, which (the
-    // occupied box lying inside the owned box) also makes the ranks' pieces disjoint.
-    const Box& live = vol.occupied_cells;
-    const bool any_live = !live.empty();
-    const double eps = 1e-9 * g.h;
-    Vec3 loc_lo, loc_hi;
-    for (int a = 0; a < 3; ++a) {
-        loc_lo[a] = g.origin[a] + live.lo[a] * g.h - eps;
-        loc_hi[a] = g.origin[a] + live.hi[a] * g.h + eps;
-    }
-    const double ds_nominal = rs.step * g.h;
+    const RaySetup setup(cam, vol, view, rs);
     // Pixels whose ray can meet the occupied box: all when the ground is shaded here.
     Box2 px = ground.active() ? Box2{0, 0, cam.width(), cam.height()}
-                              : any_live ? image_rect(cam, loc_lo, loc_hi) : Box2{};
+                              : setup.any_live ? image_rect(cam, setup.loc_lo, setup.loc_hi) : Box2{};
     MarchStats stats;
     double C[kMaxBands], T[kMaxBands], L[kMaxBands];
     for (int y = px.y0; y < px.y1; ++y) {
         for (int x = px.x0; x < px.x1; ++x) {
             const auto pixel = static_cast<std::int32_t>(static_cast<long long>(y) * cam.width() + x);
             RaySteps r;
-            r.o = o;
-            r.d = cam.pixel_direction(x, y);
-            double tg0, tg1, ta, tb;
-            if (any_live && intersect_box(o, r.d, loc_lo, loc_hi, ta, tb) && tb > 0.0 &&
-                intersect_box(o, r.d, dom_lo, dom_hi, tg0, tg1) && tg1 > 0.0) {
-                r.t_enter = std::max(tg0, 0.0);
-                const double chord = tg1 - r.t_enter;
-                r.n = std::max(1, static_cast<int>(std::ceil(chord / ds_nominal)));
-                r.ds = chord / r.n;
-                for (int a = 0; a < 3; ++a)
-                    r.inv_d[a] = r.d[a] != 0.0 ? 1.0 / r.d[a] : std::numeric_limits<double>::infinity();
-                // Candidate steps: midpoints within [ta, tb], padded by one step each side.
-                const double first = std::ceil((ta - r.t_enter) / r.ds - 0.5) - 1.0;
-                const double last = std::floor((tb - r.t_enter) / r.ds - 0.5) + 2.0;
-                int m0 = static_cast<int>(std::clamp(first, 0.0, static_cast<double>(r.n)));
-                int m1 = static_cast<int>(std::clamp(last, 0.0, static_cast<double>(r.n)));
-                while (m0 < m1 && !step_in(r, view, m0, live)) ++m0;
-                while (m1 > m0 && !step_in(r, view, m1 - 1, live)) --m1;
-                if (m0 < m1) {
-                    std::fill(C, C + nb, 0.0);
-                    std::fill(T, T + nb, 1.0);
-                    stats.samples += march(view, r, m0, m1, rs.early_termination, C, T);
-                    bool identity = true;
-                    for (int b = 0; b < nb; ++b) identity = identity && C[b] == 0.0 && T[b] == 1.0;
-                    if (!identity) {
-                        out.add_segment(pixel, m0, C, T);
-                        ++stats.fragments;
-                    }
+            int m0 = 0, m1 = 0;
+            if (setup.setup_ray(x, y, r, m0, m1)) {
+                std::fill(C, C + nb, 0.0);
+                std::fill(T, T + nb, 1.0);
+                stats.samples += march(view, r, m0, m1, rs.early_termination, C, T);
+                bool identity = true;
+                for (int b = 0; b < nb; ++b) identity = identity && C[b] == 0.0 && T[b] == 1.0;
+                if (!identity) {
+                    out.add_segment(pixel, m0, C, T);
+                    ++stats.fragments;
                 }
             }
-            if (ground.active() && ground.shade(o, r.d, L)) {
+            if (ground.active() && ground.shade(setup.o, cam.pixel_direction(x, y), L)) {
                 out.add_background(pixel, L);
                 ++stats.ground;
             }
         }
+    }
+    return stats;
+}
+
+using DepthFn = void (*)(const MarchView&, const RaySteps&, int, int, double&, double&);
+using SourceMarchFn = long (*)(const MarchView&, const RaySteps&, int, int, double, const ViewRaySource&,
+                               const double*, double*, double*, ViewPathState&);
+
+// march_image with a view-path source (view_source.h): a depth prepass over the rank's pieces,
+// the exclusive scan of the depths in visibility order (view_depth.h), then the march.
+MarchStats march_image_source(const Camera& cam, const ViewVolume& vol, const GroundShading& ground,
+                              const RenderSpec& rs, const ViewRaySource& src,
+                              const std::vector<double>& sigma_s, MPI_Comm comm, FragmentBuffer& out) {
+    const MarchView view = make_march_view(vol);
+    const int nb = vol.nbands;
+    const DepthFn depth = nb == 1 ? &march_depth<1> : nb == 3 ? &march_depth<3> : &march_depth<0>;
+    const SourceMarchFn march = nb == 1   ? &march_steps_source<1>
+                                : nb == 3 ? &march_steps_source<3>
+                                          : &march_steps_source<0>;
+    const RaySetup setup(cam, vol, view, rs);
+    Box2 px = setup.any_live ? image_rect(cam, setup.loc_lo, setup.loc_hi) : Box2{};
+    // 1. Prepass: the depth sums of this rank's pieces. A ray that leaves the rank's box
+    //    through the domain boundary has no piece behind this one: its sums are never read.
+    const Grid& g = vol.grid;
+    Vec3 own_lo, own_hi;
+    for (int a = 0; a < 3; ++a) {
+        own_lo[a] = g.origin[a] + vol.owned.lo[a] * g.h;
+        own_hi[a] = g.origin[a] + vol.owned.hi[a] * g.h;
+    }
+    std::vector<PieceDepth> pieces;
+    for (int y = px.y0; y < px.y1; ++y)
+        for (int x = px.x0; x < px.x1; ++x) {
+            RaySteps r;
+            int m0 = 0, m1 = 0;
+            if (!setup.setup_ray(x, y, r, m0, m1)) continue;
+            PieceDepth p;
+            p.pixel = static_cast<std::int32_t>(static_cast<long long>(y) * cam.width() + x);
+            p.key = m0;
+            double to0, to1, td0, td1;
+            const bool last = intersect_box(r.o, r.d, own_lo, own_hi, to0, to1) &&
+                              intersect_box(r.o, r.d, g.origin, g.upper(), td0, td1) && to1 >= td1 - 1e-9 * g.h;
+            if (!last) depth(view, r, m0, m1, p.tau, p.s);
+            pieces.push_back(p);
+        }
+    // 2. The depths at each piece's entry.
+    const std::vector<std::array<double, 2>> entry = view_depth_at_entry(pieces, cam.width(), cam.height(), comm);
+    // 3. The march (pieces without medium add nothing).
+    MarchStats stats;
+    double C[kMaxBands], T[kMaxBands], L[kMaxBands];
+    size_t next = 0;
+    for (int y = px.y0; y < px.y1; ++y)
+        for (int x = px.x0; x < px.x1; ++x) {
+            const auto pixel = static_cast<std::int32_t>(static_cast<long long>(y) * cam.width() + x);
+            if (next >= pieces.size() || pieces[next].pixel != pixel) continue;
+            RaySteps r;
+            int m0 = 0, m1 = 0;
+            setup.setup_ray(x, y, r, m0, m1);
+            ViewPathState st;
+            st.tau = entry[next][0];
+            st.s = entry[next][1];
+            ++next;
+            std::fill(C, C + nb, 0.0);
+            std::fill(T, T + nb, 1.0);
+            stats.samples += march(view, r, m0, m1, rs.early_termination, src, sigma_s.data(), C, T, st);
+            out.add_segment_held(pixel, m0, C, T, st.A, st.H_spec, st.H, st.has_spec, st.has_sample);
+            ++stats.fragments;
+        }
+    if (ground.active()) {
+        for (int y = 0; y < cam.height(); ++y)
+            for (int x = 0; x < cam.width(); ++x) {
+                const auto pixel = static_cast<std::int32_t>(static_cast<long long>(y) * cam.width() + x);
+                if (ground.shade(cam.position(), cam.pixel_direction(x, y), L)) {
+                    out.add_background(pixel, L);
+                    ++stats.ground;
+                }
+            }
     }
     return stats;
 }
@@ -178,11 +276,23 @@ Image render_image(const RenderInputs& in, const Decomposition& d, Report& repor
         volume = balance_view_volume(std::move(volume), d, *camera);
     }
 
-    FragmentBuffer fragments(nb);
+    // A view-path source (view_source.h) only in mode scattering.
+    ViewRaySource* source = scene.render.mode == RenderMode::scattering ? in.view_source : nullptr;
+    if (source) {
+        ScopedTimer t(report, "source_prepare");
+        source->prepare(volume.owned, d);
+    }
+    FragmentBuffer fragments(nb, source != nullptr);
     MarchStats stats;
     {
         ScopedTimer t(report, "march");
-        stats = march_image(*camera, volume, *ground, scene.render, fragments);
+        if (source) {
+            std::vector<double> sigma_s;
+            for (const auto& band : in.medium.bands) sigma_s.push_back(band.sigma_t * band.albedo);
+            stats = march_image_source(*camera, volume, *ground, scene.render, *source, sigma_s, d.comm(), fragments);
+        } else {
+            stats = march_image(*camera, volume, *ground, scene.render, fragments);
+        }
     }
     volume = ViewVolume{};  // free the march data before compositing
 

@@ -7,6 +7,7 @@
 #include "src/core/report.h"
 #include "src/model/model.h"
 #include "src/render/image.h"
+#include "src/render/view_source.h"
 #include "src/scene/medium.h"
 #include "src/scene/scene.h"
 
@@ -17,6 +18,9 @@ struct RenderInputs {
     const Medium& medium;          // rho with 1 exchanged ghost layer
     const LightTransport& light;   // tau_rho per light, 1 exchanged ghost layer
     const DiffuseSolution& diffuse;  // fluence (+ flux) with 1 exchanged ghost layer
+    // Optional view-path-dependent source (view_source.h), owned by the caller; nullptr: none.
+    // Only used in render mode `scattering`.
+    ViewRaySource* view_source = nullptr;
 };
 
 // Collective over d.comm(). Returns the image on rank 0 and an empty Image elsewhere.

@@ -1,0 +1,50 @@
+#include "solvers/psf/psf.h"
+
+#include "solvers/psf/psf_source.h"
+#include "src/core/report.h"
+#include "src/render/raycaster.h"
+
+namespace nimbus {
+namespace {
+
+class PsfModel final : public ScatteringModel {
+public:
+    explicit PsfModel(const PsfOptions& opt) : opt_(opt) {}
+    std::string name() const override { return "psf"; }
+    nlohmann::json options() const override {
+        return {{"levels", opt_.levels}, {"step_growth", opt_.step_growth}};
+    }
+
+    void solve(const SolveContext& ctx, DiffuseSolution& out) override {
+        {
+            ScopedTimer t(ctx.report, "psf_pyramid");
+            source_ = std::make_unique<psf::PsfSource>(ctx, opt_);
+        }
+        ScopedTimer t(ctx.report, "psf_fluence");
+        out = DiffuseSolution{};
+        source_->fluence(ctx.medium, ctx.decomp, out.fluence);
+        auto& v = ctx.report.values()["psf"];
+        v["levels"] = source_->pyramid().size();
+        nlohmann::json widths = nlohmann::json::array();
+        for (int k = 0; k < source_->pyramid().size(); ++k) widths.push_back(source_->pyramid().level(k).width);
+        v["level_widths_m"] = widths;
+    }
+
+    bool renders_image() const override { return true; }
+    Image render(const SolveContext& ctx) override {
+        const DiffuseSolution none;  // multiple scattering comes from the PSF source
+        RenderInputs in{ctx.scene, ctx.medium, ctx.light, none};
+        in.view_source = source_.get();
+        return render_image(in, ctx.decomp, ctx.report);
+    }
+
+private:
+    PsfOptions opt_;
+    std::unique_ptr<psf::PsfSource> source_;
+};
+
+}  // namespace
+
+std::unique_ptr<ScatteringModel> make_psf_model(const PsfOptions& opt) { return std::make_unique<PsfModel>(opt); }
+
+}  // namespace nimbus

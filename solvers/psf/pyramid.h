@@ -1,0 +1,79 @@
+// The light-volume pyramid (Premoze et al. 2004, Algorithm 1 BuildVolumePyramid, §5): a 3-D
+// mip-map of a cell field (here the light volume T_l of every light term, one component each).
+//   level 0: the field itself, blur width w_0 = 0;
+//   level k: level k-1 resampled to half the resolution (cell h_k = 2^k h, each coarse cell the
+//            mean of the fine cells inside the domain), then a separable Gaussian of standard
+//            deviation sigma_k coarse cells (truncated at ceil(4 sigma_k), renormalized), with
+//            half-sample reflecting boundaries.
+// The blur width (standard deviation per axis, metres) of level k relative to level 0 (cell
+// values read as samples at cell centres; the 2-sample mean at ±h_{k-1}/2 has variance h_k²/16):
+//   w_k² = w_{k-1}² + h_k²/16 + (sigma_k h_k)²,  sigma_k chosen so that w_k = h_k
+// (sigma_1² = 15/16, sigma_k² = 11/16 for k >= 2).
+// Energy: the box resampling and the reflecting, normalized blur both preserve
+// Σ value × (cell volume inside the domain), exactly on grids whose size is divisible by 2^k.
+//
+// Distribution (slabs along z): a level stays distributed while every rank's slab of it is at
+// least (ghost + 1) layers thick, with ghost = max(kernel radius, 3) layers filled by the halo
+// exchange (src/core/halo.h); coarser levels are replicated on every rank (gathered once).
+// Other process grids replicate every level above 0.
+#pragma once
+
+#include <memory>
+#include <utility>
+#include <vector>
+
+#include "src/core/decomposition.h"
+#include "src/core/field.h"
+#include "src/core/grid.h"
+#include "src/core/vec3.h"
+
+namespace nimbus::psf {
+
+struct PyramidLevel {
+    int k = 0;
+    Int3 n{0, 0, 0};          // cells per axis
+    double h = 1.0;           // cell edge, metres
+    double width = 0.0;       // blur width w_k, metres
+    double sigma = 0.0;       // Gaussian standard deviation, level cells (0 for level 0)
+    int radius = 0;           // kernel radius, level cells
+    bool replicated = false;  // whole level on every rank
+    std::vector<std::pair<int, int>> z_owned;  // per rank: owned z-layers [lo, hi) (distributed)
+    Field<float> values;      // owned box + ghost (distributed) or the whole level (replicated)
+};
+
+class LightPyramid {
+public:
+    LightPyramid() = default;
+    // Collective over d.comm(). level0: d.local() with ghost >= 3 (owned cells are read; the
+    // ghosts are exchanged here), ncomp components. max_levels = 0: down to <= 2 cells per axis.
+    LightPyramid(Field<double> level0, const Grid& g, const Decomposition& d, int max_levels);
+
+    int size() const { return static_cast<int>(levels_.size()); }
+    const PyramidLevel& level(int k) const { return levels_[static_cast<size_t>(k)]; }
+    int ncomp() const { return ncomp_; }
+    Vec3 origin() const { return origin_; }
+
+private:
+    std::vector<PyramidLevel> levels_;
+    int ncomp_ = 1;
+    Vec3 origin_;
+};
+
+// Collective over comm. The z-layers [need_lo, need_hi) (clamped to [0, n_z)) of a distributed
+// level, gathered from their owners; replicated levels are returned whole.
+Field<float> gather_layers(const PyramidLevel& level, int need_lo, int need_hi, MPI_Comm comm);
+
+// Trilinear interpolation between the cell centres of a level at world x (clamped to the edge
+// cells); f must hold the 2x2x2 stencil. out: the first ncomp values (-1: f.ncomp()). Pure.
+void sample_level(const Field<float>& f, const PyramidLevel& level, const Vec3& origin, const Vec3& x,
+                  float* out, int ncomp = -1);
+
+// Half-sample reflection of index i into [0, n).
+inline int reflect_index(int i, int n) {
+    const int p = 2 * n;
+    int m = i % p;
+    if (m < 0) m += p;
+    return m < n ? m : p - 1 - m;
+}
+
+}  // namespace nimbus::psf
