@@ -1,0 +1,71 @@
+#include "solvers/dom/band_problem.h"
+
+#include <cmath>
+
+#include "src/physics/lights.h"
+
+namespace nimbus::dom {
+
+BandProblem make_band_optics(const Medium& m, int b, const Box& own, const AngularSet& ang, bool delta_m) {
+    const BandOptics& o = m.bands[static_cast<size_t>(b)];
+    BandProblem p;
+    p.h = m.grid.h;
+    p.phase = hg_legendre(o.g, ang.L, delta_m);
+    const double f = p.phase.f, a = o.albedo;
+    p.kappa = Field<double>(own, 0, 1, 0.0);
+    p.sigma_s = Field<double>(own, 0, 1, 0.0);
+    p.sigma_a = Field<double>(own, 0, 1, 0.0);
+    p.kappa_tr = Field<double>(own, 0, 1, 0.0);
+    p.emission = Field<double>(own, 0, 1, 0.0);
+    p.forward_fluence = Field<double>(own, 0, 1, 0.0);
+    p.forward_flux = Field<double>(own, 0, 3, 0.0);
+    for_each_cell(own, [&](int i, int j, int k) {
+        const double kappa = m.rho(i, j, k) * o.sigma_t;
+        p.kappa(i, j, k) = delta_m_sigma_t_scale(a, f) * kappa;
+        p.sigma_s(i, j, k) = (1.0 - f) * a * kappa;
+        p.sigma_a(i, j, k) = (1.0 - a) * kappa;
+        p.kappa_tr(i, j, k) = kappa * (1.0 - a * o.g);
+    });
+    return p;
+}
+
+void add_light_sources(BandProblem& p, const Medium& m, const LightTransport& lt, int b, const AngularSet& ang) {
+    const BandOptics& o = m.bands[static_cast<size_t>(b)];
+    const int nl = static_cast<int>(lt.lights.size());
+    const Box own = p.kappa.owned();
+    const double f = p.phase.f, scale = delta_m_sigma_t_scale(o.albedo, f);
+    p.nl = nl;
+    p.amp = Field<double>(own, 0, std::max(1, nl), 0.0);
+    // Phase values per octant, renormalized over the whole quadrature.
+    std::vector<double> norm(static_cast<size_t>(nl), 0.0);
+    for (int oc = 0; oc < 8; ++oc) {
+        const auto& od = ang.octants[static_cast<size_t>(oc)];
+        const int nd = od.size();
+        auto& P = p.light_phase[static_cast<size_t>(oc)];
+        P.assign(static_cast<size_t>(nl * nd), 0.0);
+        for (int l = 0; l < nl; ++l)
+            for (int n = 0; n < nd; ++n) {
+                const double v = legendre_phase_value(p.phase, dot(od.dir[static_cast<size_t>(n)], lt.lights[static_cast<size_t>(l)].w));
+                P[static_cast<size_t>(l * nd + n)] = v;
+                norm[static_cast<size_t>(l)] += od.weight[static_cast<size_t>(n)] * v;
+            }
+    }
+    for (auto& P : p.light_phase) {
+        const size_t nd = nl > 0 ? P.size() / static_cast<size_t>(nl) : 0;
+        for (size_t q = 0; q < P.size(); ++q) P[q] /= norm[q / nd];
+    }
+    for (int l = 0; l < nl; ++l) {
+        const auto& light = lt.lights[static_cast<size_t>(l)];
+        const double E0 = band_value(light.E0, b);
+        for_each_cell(own, [&](int i, int j, int k) {
+            const double tau = o.sigma_t * lt.tau_rho[static_cast<size_t>(l)](i, j, k);
+            const double T = std::exp(-tau), Ts = std::exp(-scale * tau);
+            p.amp(i, j, k, l) = p.sigma_s(i, j, k) * E0 * Ts;
+            const double fwd = E0 * (Ts - T);
+            p.forward_fluence(i, j, k) += fwd;
+            for (int c = 0; c < 3; ++c) p.forward_flux(i, j, k, c) += fwd * light.w[c];
+        });
+    }
+}
+
+}  // namespace nimbus::dom

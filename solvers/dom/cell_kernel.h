@@ -1,0 +1,53 @@
+// Per-cell kernels of the discrete-ordinates sweep: pure inline functions of pointers and
+// scalars (no MPI, no allocation), directions innermost and contiguous so the loops vectorize.
+//
+// Source of direction n of one octant in a cell (W/m³/sr):
+//   S_n = Σ_l A_l P_l,n + Σ_k Y_k,n s_k
+// with A_l = kappa* a* E0_l T*_l the first-collision amplitude of light term l, P_l,n its
+// (scaled, truncated) phase value toward Ω_n, and s_k = kappa* a* chi_l(k) phi_k the
+// scattering source moments (DESIGN §1; angular_moments.h).
+//
+// Step (upwind) scheme, cell of edge h (Lewis & Miller 1984 §4-4; the positive first-order
+// scheme): the balance Σ_a |Ω_a|/h (psi - psi_in,a) + kappa psi = S with outgoing face
+// values equal to the cell value gives
+//   psi_n = (S_n + Σ_a c_a,n psi_in,a,n) / (kappa + Σ_a c_a,n),   c_a,n = |Ω_a,n| / h.
+#pragma once
+
+namespace nimbus::dom {
+
+// S[n] for n < nd. A: nl amplitudes; P: nl x nd; Y: nmom x nd; s: nmom source moments.
+inline void cell_source(int nd, int nl, int nmom, const double* A, const double* P, const double* Y,
+                        const double* s, double* S) {
+    for (int n = 0; n < nd; ++n) S[n] = 0.0;
+    for (int l = 0; l < nl; ++l) {
+        const double a = A[l];
+        const double* p = P + l * nd;
+        for (int n = 0; n < nd; ++n) S[n] += a * p[n];
+    }
+    for (int k = 0; k < nmom; ++k) {
+        const double sk = s[k];
+        const double* y = Y + k * nd;
+        for (int n = 0; n < nd; ++n) S[n] += sk * y[n];
+    }
+}
+
+// Step scheme. cx, cy, cz: |Ω_a|/h per direction; csum = cx + cy + cz; in_x/in_y/in_z: the
+// upwind cells' angular fluxes (the incoming face values); psi: the result.
+inline void step_cell(int nd, double kappa, const double* S, const double* cx, const double* cy,
+                      const double* cz, const double* csum, const double* in_x, const double* in_y,
+                      const double* in_z, double* psi) {
+    for (int n = 0; n < nd; ++n)
+        psi[n] = (S[n] + cx[n] * in_x[n] + cy[n] * in_y[n] + cz[n] * in_z[n]) / (kappa + csum[n]);
+}
+
+// Moment accumulation of one cell's octant: phi_k += Σ_n wY[k][n] psi_n.
+inline void accumulate_moments(int nd, int nmom, const double* wY, const double* psi, double* phi) {
+    for (int k = 0; k < nmom; ++k) {
+        const double* w = wY + k * nd;
+        double sum = 0.0;
+        for (int n = 0; n < nd; ++n) sum += w[n] * psi[n];
+        phi[k] += sum;
+    }
+}
+
+}  // namespace nimbus::dom

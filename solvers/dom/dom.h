@@ -1,0 +1,30 @@
+// Model `dom`: discrete ordinates for the diffuse radiance I_d (DESIGN §1), per band
+//   Ω·∇I + kappa* I = kappa* a* Σ_l chi*_l (2l+1)/(4π) ∫ P_l(Ω·Ω') I dΩ' + Q*(x, Ω)
+// with the delta-M scaled optics and the exact first-collision source of band_problem.h,
+// on the quadrature of DomOptions (src/physics/quadrature.h), swept with the step scheme on the
+// KBA engine (transport_sweep.h) and iterated by source iteration, DSA (iteration.h) or
+// GMRES on the scattering moments (gmres.h).
+//
+// Options (DomOptions, [model.dom]): quadrature, order, polar, azimuthal, legendre_order,
+// delta_m, scheme (step; diamond is not implemented yet), iteration (source | dsa | gmres),
+// tolerance, max_iterations, tile_rows.
+//
+// Outputs per band: fluence_diffuse = Σ_n w_n I_n + E0 (T* - T) (W/m²) and flux_diffuse =
+// Σ_n w_n Ω_n I_n + E0 (T* - T) w (W/m²), owned + 1 ghost, halo-exchanged. Report
+// values()["dom"]: quadrature, iterations and residual history per band, grind time
+// (ns per cell·direction·band per iteration: total iteration time / (cells · directions ·
+// iterations), this rank's cells) and the sweep-only grind time, pipeline efficiency
+// (1 - wait/sweep time), leakage per face and the energy balance, memory per cell.
+// Collective; throws Error on every rank when an iteration does not converge.
+#pragma once
+
+#include <memory>
+
+#include "src/model/model.h"
+#include "src/model/options.h"
+
+namespace nimbus {
+
+std::unique_ptr<ScatteringModel> make_dom_model(const DomOptions& opt);
+
+}  // namespace nimbus

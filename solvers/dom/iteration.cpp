@@ -1,0 +1,96 @@
+#include "solvers/dom/iteration.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <memory>
+
+#include "solvers/dom/dsa.h"
+
+namespace nimbus::dom {
+namespace {
+
+// Scattering (and emission) source moments s_k = sigma_s chi_l(k) phi_k (+ sqrt(4π) q at k=0).
+void make_source_moments(const BandProblem& p, const AngularSet& ang, const Field<double>& phi,
+                         Field<double>& s) {
+    const int nmom = ang.nmom;
+    const double y0inv = std::sqrt(4.0 * std::acos(-1.0));  // 1 / Y_00
+    const size_t ncell = static_cast<size_t>(p.kappa.owned().cells());
+    std::vector<double> chi(static_cast<size_t>(nmom));
+    for (int k = 0; k < nmom; ++k) {
+        const int l = ang.degree[static_cast<size_t>(k)];
+        chi[static_cast<size_t>(k)] = l < static_cast<int>(p.phase.chi.size()) ? p.phase.chi[static_cast<size_t>(l)] : 0.0;
+    }
+    const double* ss = p.sigma_s.data();
+    const double* q = p.emission.data();
+    const double* ph = phi.data();
+    double* out = s.data();
+    for (size_t c = 0; c < ncell; ++c) {
+        for (int k = 0; k < nmom; ++k) out[c * nmom + k] = ss[c] * chi[static_cast<size_t>(k)] * ph[c * nmom + k];
+        out[c * nmom] += y0inv * q[c];
+    }
+}
+
+}  // namespace
+
+std::string format_history(const std::vector<double>& h) {
+    std::string s;
+    const size_t n = h.size();
+    for (size_t i = 0; i < n; ++i) {
+        if (n > 12 && i == 6) {
+            s += "..., ";
+            i = n - 6;
+        }
+        s += fmt::format("{}: {:.3e}{}", i + 1, h[i], i + 1 < n ? ", " : "");
+    }
+    return s;
+}
+
+IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, const AngularSet& ang,
+                             const BandProblem& p, const std::string& method, double tolerance,
+                             int max_iterations, SweepOutput& out, Report& report) {
+    const double t0 = MPI_Wtime();
+    IterationResult res;
+    const Box& own = d.local();
+    std::unique_ptr<DiffusionSynthetic> dsa;
+    if (method == "dsa") dsa = std::make_unique<DiffusionSynthetic>(d, p, 1e-4);
+    const double y00 = 1.0 / std::sqrt(4.0 * std::acos(-1.0));
+    Field<double> phi(own, 0, ang.nmom, 0.0), s(own, 0, ang.nmom, 0.0);
+    Field<double> fluence_old(own, 0, 1, 0.0);
+    SweepSource src;
+    src.kappa = &p.kappa;
+    src.moments = &s;
+    src.amp = &p.amp;
+    src.nl = p.nl;
+    src.light_phase = p.light_phase;
+    for (int it = 1; it <= max_iterations; ++it) {
+        make_source_moments(p, ang, phi, s);
+        sweeper.sweep(src, out);
+        if (dsa) {
+            res.dsa_linear_iterations += dsa->correct(fluence_old, out.fluence, report);
+            const auto& delta = dsa->last_correction();
+            for_each_cell(own, [&](int i, int j, int k) { out.phi(i, j, k, 0) += y00 * delta(i, j, k); });
+        }
+        double sums[2] = {0.0, 0.0};
+        for_each_cell(own, [&](int i, int j, int k) {
+            const double diff = out.fluence(i, j, k) - fluence_old(i, j, k);
+            sums[0] += diff * diff;
+            sums[1] += out.fluence(i, j, k) * out.fluence(i, j, k);
+        });
+        MPI_Allreduce(MPI_IN_PLACE, sums, 2, MPI_DOUBLE, MPI_SUM, d.comm());
+        const double change = sums[1] > 0 ? std::sqrt(sums[0] / sums[1]) : 0.0;
+        res.history.push_back(change);
+        res.iterations = it;
+        std::swap(phi, out.phi);  // phi: the current iterate, feeds the next source
+        fluence_old = out.fluence;
+        if (change <= tolerance) {
+            res.converged = true;
+            break;
+        }
+    }
+    std::swap(phi, out.phi);
+    res.seconds = MPI_Wtime() - t0;
+    return res;
+}
+
+}  // namespace nimbus::dom

@@ -1,0 +1,40 @@
+// The outer iteration of one band: source iteration, optionally accelerated by DSA (dsa.h).
+//   phi^{l+1/2} = sweep( kappa* a* Σ chi_l Y phi^l + Q )            (transport_sweep.h)
+//   phi^{l+1}   = phi^{l+1/2} (+ DSA correction of the scalar flux)
+// stopping when the relative change of the scalar fluence,
+//   ||phi_0^{l+1} - phi_0^l||_2 / ||phi_0^{l+1}||_2  (owned cells, all ranks),
+// falls below opt.tolerance. With plain source iteration the error left is about
+// tolerance · rho/(1 - rho), rho ≈ a the spectral radius; with DSA rho is small.
+//
+// Collective over d.comm(). Returns the history whether or not it converged (the model turns
+// non-convergence into an Error); the last sweep's fields are in `out`.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "solvers/dom/band_problem.h"
+#include "solvers/dom/transport_sweep.h"
+#include "src/core/decomposition.h"
+#include "src/core/report.h"
+#include "src/model/options.h"
+
+namespace nimbus::dom {
+
+struct IterationResult {
+    bool converged = false;
+    int iterations = 0;
+    std::vector<double> history;     // relative change after each iteration
+    int dsa_linear_iterations = 0;   // summed over the DSA solves
+    double seconds = 0;              // total iteration time (sweeps, moments, DSA)
+};
+
+// method: "source" or "dsa".
+IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, const AngularSet& ang,
+                             const BandProblem& p, const std::string& method, double tolerance,
+                             int max_iterations, SweepOutput& out, Report& report);
+
+// "1: 3.2e-01, 2: 1.1e-01, ..." (at most the first and last few entries).
+std::string format_history(const std::vector<double>& history);
+
+}  // namespace nimbus::dom

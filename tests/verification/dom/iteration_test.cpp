@@ -1,0 +1,163 @@
+// Iteration: 1 vs 2 ranks equal to the iteration tolerance (world against MPI_COMM_SELF);
+// the hard case of issue item 5 (cube of optical thickness 100, albedo 0.999 and 1): DSA
+// converges in <= 30 iterations, while source iteration's spectral radius is about a, i.e.
+// thousands of iterations (shown with a capped count); non-convergence is an Error.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "solvers/dom/dom.h"
+#include "src/core/error.h"
+#include "tests/support/mpi_test.h"
+#include "tests/verification/dom/dom_world.h"
+
+namespace nimbus {
+namespace {
+
+// A lumpy cloud in a 10 x 8 x 12 box, lit obliquely.
+test::DomWorld cloud(MPI_Comm comm) {
+    test::DomWorld w(comm, {10, 8, 12}, 0.5, BandOptics{"gray", 1.0, 0.95, 0.7});
+    for_each_cell(w.d.local(), [&](int i, int j, int k) {
+        const double r2 = std::pow(i - 4.5, 2) + std::pow(j - 3.5, 2) + std::pow(k - 5.5, 2);
+        w.m.rho(i, j, k) = r2 < 20 ? 2.0 + 0.3 * ((i + 2 * j + 3 * k) % 4) : 0.0;
+    });
+    w.add_sun_from_top({0.0, 0.0, -1.0});  // vertical: tau_rho column sums below are exact
+    Field<double>& tau = w.light.tau_rho[0];
+    for_each_cell(w.d.local(), [&](int i, int j, int k) { tau(i, j, k) = 0.0; });
+    // tau_rho = ∫ rho ds upward from the cell centre: needs the whole column, so recompute it
+    // from the procedural density (identical on every rank).
+    for_each_cell(w.d.local(), [&](int i, int j, int k) {
+        auto rho = [&](int kk) {
+            const double r2 = std::pow(i - 4.5, 2) + std::pow(j - 3.5, 2) + std::pow(kk - 5.5, 2);
+            return r2 < 20 ? 2.0 + 0.3 * ((i + 2 * j + 3 * kk) % 4) : 0.0;
+        };
+        double t = 0.5 * rho(k);
+        for (int kk = k + 1; kk < 12; ++kk) t += rho(kk);
+        tau(i, j, k) = t * w.m.grid.h;
+    });
+    return w;
+}
+
+TEST(DomIteration, OneAndTwoRanksAgreeToTheTolerance) {
+    DomOptions o;
+    o.order = 4;
+    o.legendre_order = 3;
+    o.tolerance = 1e-10;
+    o.tile_rows = 3;
+    test::DomWorld world = cloud(MPI_COMM_WORLD), self = cloud(MPI_COMM_SELF);
+    DiffuseSolution a, b;
+    make_dom_model(o)->solve(world.ctx(), a);
+    make_dom_model(o)->solve(self.ctx(), b);
+    double diff = 0.0, peak = 0.0;
+    for_each_cell(world.d.local(), [&](int i, int j, int k) {
+        diff = std::max(diff, std::abs(a.fluence[0](i, j, k) - b.fluence[0](i, j, k)));
+        for (int c = 0; c < 3; ++c) diff = std::max(diff, std::abs(a.flux[0](i, j, k, c) - b.flux[0](i, j, k, c)));
+        peak = std::max(peak, b.fluence[0](i, j, k));
+    });
+    MPI_Allreduce(MPI_IN_PLACE, &diff, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    MPI_Allreduce(MPI_IN_PLACE, &peak, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    if (test::world_rank() == 0) std::printf("1 vs %d ranks: max diff %.3e of peak %.4f\n", test::world_size(), diff, peak);
+    EXPECT_GT(peak, 0.0);
+    EXPECT_LE(diff, 1e-8 * peak);
+}
+
+struct CubeRun {
+    bool converged = false;
+    int iterations = 0;
+    std::vector<double> history;
+};
+
+// Cube of 16³ cells, optical thickness 100 along each axis, isotropic scattering, S4.
+CubeRun thick_cube(double albedo, const std::string& method, int max_iterations) {
+    const int n = 16;
+    test::DomWorld w(MPI_COMM_WORLD, {n, n, n}, 100.0 / n, BandOptics{"gray", 1.0, albedo, 0.0});
+    w.add_sun_from_top({0.3, 0.2, -1.0});
+    DomOptions o;
+    o.order = 4;
+    o.legendre_order = 0;
+    o.iteration = method;
+    o.tolerance = 1e-6;
+    o.max_iterations = max_iterations;
+    CubeRun r;
+    DiffuseSolution sol;
+    try {
+        make_dom_model(o)->solve(w.ctx(), sol);
+        r.converged = true;
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("did not converge"), std::string::npos) << e.what();
+    }
+    // The report holds the history when the model threw too.
+    const auto& band = w.report.values()["dom"]["bands"];
+    if (!band.empty()) {
+        r.iterations = band[0]["iterations"].get<int>();
+        r.history = band[0]["history"].get<std::vector<double>>();
+    }
+    return r;
+}
+
+TEST(DomIteration, DsaConvergesOnTheThickCube) {
+    for (double a : {0.999, 1.0}) {
+        const CubeRun r = thick_cube(a, "dsa", 30);
+        if (test::world_rank() == 0)
+            std::printf("tau 100 cube, albedo %.3f, DSA: %d iterations, last change %.2e\n", a, r.iterations,
+                        r.history.empty() ? 0.0 : r.history.back());
+        EXPECT_TRUE(r.converged) << "albedo " << a;
+        EXPECT_LE(r.iterations, 30);
+    }
+}
+
+// Unpreconditioned GMRES(30): measured 34 and 35 iterations (the bound of 30 of issue item 5
+// is met by DSA only; a DSA-preconditioned GMRES is not implemented yet).
+TEST(DomIteration, GmresConvergesOnTheThickCube) {
+    for (double a : {0.999, 1.0}) {
+        const CubeRun r = thick_cube(a, "gmres", 60);
+        if (test::world_rank() == 0)
+            std::printf("tau 100 cube, albedo %.3f, GMRES: %d iterations, last residual %.2e\n", a, r.iterations,
+                        r.history.empty() ? 0.0 : r.history.back());
+        EXPECT_TRUE(r.converged) << "albedo " << a;
+        EXPECT_LE(r.iterations, 60);
+    }
+}
+
+TEST(DomIteration, GmresDsaAndSourceIterationAgree) {
+    DiffuseSolution sol[3];
+    const char* methods[3] = {"source", "dsa", "gmres"};
+    for (int q = 0; q < 3; ++q) {
+        test::DomWorld w = cloud(MPI_COMM_WORLD);
+        DomOptions o;
+        o.order = 4;
+        o.legendre_order = 3;
+        o.tolerance = 1e-10;
+        o.iteration = methods[q];
+        make_dom_model(o)->solve(w.ctx(), sol[q]);
+    }
+    double diff = 0.0, peak = 0.0;
+    for_each_cell(sol[0].fluence[0].owned(), [&](int i, int j, int k) {
+        for (int q = 1; q < 3; ++q) diff = std::max(diff, std::abs(sol[q].fluence[0](i, j, k) - sol[0].fluence[0](i, j, k)));
+        peak = std::max(peak, sol[0].fluence[0](i, j, k));
+    });
+    MPI_Allreduce(MPI_IN_PLACE, &diff, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    MPI_Allreduce(MPI_IN_PLACE, &peak, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    if (test::world_rank() == 0) std::printf("source vs dsa vs gmres: max diff %.3e of peak %.4f\n", diff, peak);
+    EXPECT_LE(diff, 1e-7 * peak);
+}
+
+TEST(DomIteration, SourceIterationStallsOnTheThickCube) {
+    const int cap = 200;
+    for (double a : {0.999, 1.0}) {
+        const CubeRun r = thick_cube(a, "source", cap);
+        EXPECT_FALSE(r.converged);
+        ASSERT_EQ(static_cast<int>(r.history.size()), cap);
+        const double rho = r.history[cap - 1] / r.history[cap - 2];
+        // Source iteration's error is about change · rho/(1 - rho): iterations until that is 1e-6.
+        const double needed = cap + std::log(1e-6 * (1 - rho) / (rho * r.history[cap - 1])) / std::log(rho);
+        if (test::world_rank() == 0)
+            std::printf("tau 100 cube, albedo %.3f, source iteration: change %.2e after %d, ratio %.5f, "
+                        "about %.0f iterations needed for an error of 1e-6\n", a, r.history[cap - 1], cap, rho, needed);
+        EXPECT_GT(rho, 0.98);
+        EXPECT_GT(needed, 1000);
+    }
+}
+
+}  // namespace
+}  // namespace nimbus

@@ -1,0 +1,91 @@
+// Plane-parallel slab (periodic 4 x 4 x nz) of optical thickness 1, albedo 0.9, lit by a
+// collimated beam at mu0 = 0.8: reflection, diffuse transmission and the interior diffuse
+// fluence against the independent doubling-adding reference (tests/support/slab_reference.h),
+// isotropic and HG g = 0.85 (delta-M). Tolerances are set from the measured discretization
+// error (step scheme O(h), angular O(N)); the refinement that reduces them is checked too.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "solvers/dom/dom.h"
+#include "tests/support/mpi_test.h"
+#include "tests/support/slab_reference.h"
+#include "tests/verification/dom/dom_world.h"
+
+namespace nimbus {
+namespace {
+
+struct SlabErrors {
+    double R = 0, T = 0, R_ref = 0, T_ref = 0;
+    double fluence = 0;  // max |fluence - reference| / (E0 mu0) over the cell centres
+};
+
+SlabErrors run_slab(double g, int nz, int order, int L, const char* method = "dsa") {
+    const double tau0 = 1.0, a = 0.9, mu0 = 0.8, h = tau0 / nz;
+    test::DomWorld w(MPI_COMM_WORLD, {4, 4, nz}, h, BandOptics{"gray", 1.0, a, g}, {true, true, false});
+    w.add_sun_from_top({0.6, 0.0, -mu0});
+    DomOptions o;
+    o.order = order;
+    o.legendre_order = L;
+    o.iteration = method;
+    o.tolerance = 1e-9;
+    DiffuseSolution sol;
+    make_dom_model(o)->solve(w.ctx(), sol);
+    const auto& band = w.report.values()["dom"]["bands"][0];
+    const auto leak = band["leakage"].get<std::vector<double>>();
+    const double f = band["delta_m_f"].get<double>();
+    const double area = 16.0 * h * h, incident = mu0 * area;
+    // The delta-M forward peak leaves the bottom as scattered (diffuse) light too.
+    const double forward_out = (std::exp(-(1.0 - a * f) * tau0 / mu0) - std::exp(-tau0 / mu0)) * mu0 * area;
+    SlabErrors e;
+    e.R = leak[5] / incident;
+    e.T = (leak[4] + forward_out) / incident;
+    test::SlabProblem sp;
+    sp.tau0 = tau0;
+    sp.albedo = a;
+    sp.g = g;
+    sp.mu0 = mu0;
+    sp.profile_levels = 2 * nz;
+    const test::SlabSolution ref = test::solve_slab(sp);
+    e.R_ref = ref.reflected;
+    e.T_ref = ref.transmitted_diffuse;
+    for_each_cell(w.d.local(), [&](int i, int j, int k) {
+        const int level = 2 * (nz - 1 - k) + 1;  // tau from the top at the cell centre
+        const double err = std::abs(sol.fluence[0](i, j, k) - ref.fluence[static_cast<size_t>(level)]) / mu0;
+        e.fluence = std::max(e.fluence, err);
+    });
+    MPI_Allreduce(MPI_IN_PLACE, &e.fluence, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    if (test::world_rank() == 0)
+        std::printf("slab g=%.2f nz=%d S%d L=%d: R %.5f (ref %.5f, err %+.2e)  T %.5f (ref %.5f, err %+.2e)  "
+                    "fluence max err %.2e, %d iterations\n",
+                    g, nz, order, L, e.R, e.R_ref, e.R - e.R_ref, e.T, e.T_ref, e.T - e.T_ref, e.fluence,
+                    band["iterations"].get<int>());
+    return e;
+}
+
+// Measured (nz = 64; the spatial error of the step scheme is then below the angular one):
+//   isotropic  S8: R err +1.8e-3, T err +4.1e-4, fluence max err 4.8e-2
+//              S16: R err +3.9e-4, T err +2.0e-5, fluence max err 1.8e-2
+//   g = 0.85, delta-M  S8 L=7: R err +1.3e-3, T err +7.1e-4, fluence 2.6e-2
+//                      S12 L=11: R err +4.5e-4, T err -2.3e-4, fluence 8.1e-3
+// The tolerances below are about twice the finer set's error; the coarser set must be worse.
+TEST(DomSlab, IsotropicMatchesReference) {
+    const SlabErrors c = run_slab(0.0, 64, 8, 0), f = run_slab(0.0, 64, 16, 0);
+    EXPECT_LT(std::abs(f.R - f.R_ref), 1e-3);
+    EXPECT_LT(std::abs(f.T - f.T_ref), 1e-3);
+    EXPECT_LT(f.fluence, 0.03);
+    EXPECT_LT(f.fluence, 0.5 * c.fluence);
+    EXPECT_LT(std::abs(f.R - f.R_ref), std::abs(c.R - c.R_ref));
+}
+
+TEST(DomSlab, ForwardPeakedHgMatchesReference) {
+    const SlabErrors c = run_slab(0.85, 64, 8, 7), f = run_slab(0.85, 64, 12, 11);
+    EXPECT_LT(std::abs(f.R - f.R_ref), 1e-3);
+    EXPECT_LT(std::abs(f.T - f.T_ref), 1e-3);
+    EXPECT_LT(f.fluence, 0.015);
+    EXPECT_LT(f.fluence, 0.5 * c.fluence);
+    EXPECT_LT(std::abs(f.R - f.R_ref), std::abs(c.R - c.R_ref));
+}
+
+}  // namespace
+}  // namespace nimbus
