@@ -134,12 +134,18 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     const std::int64_t pcells = static_cast<std::int64_t>(box_n[0] + 2) * (box_n[1] + 2) * (box_n[2] + 2);
     auto box_index = [&](int i, int j, int k) { return padded.index({i - box_lo[0], j - box_lo[1], k - box_lo[2]}); };
 
-    // Light terms: entry faces, projected area (m²) of the domain and of the box, photon counts.
+    // Light terms: entry faces, projected area (m²) of the domain and of the box's live pixels
+    // (photon.h: rays through the rest meet only empty cells), photon counts.
     std::vector<EntrySampler> entry;
     std::vector<double> area, domain_area, power;
+    const std::vector<Int3> surface = surface_cells(
+        {box_hi[0] - box_lo[0], box_hi[1] - box_lo[1], box_hi[2] - box_lo[2]}, periodic, [&](const Int3& c) {
+            return rho[(static_cast<size_t>(c[2] + box_lo[2]) * n[1] + (c[1] + box_lo[1])) * n[0] + (c[0] + box_lo[0])] > 0;
+        });
     for (const DirectionalLight& L : lights) {
         domain_area.push_back(EntrySampler({0, 0, 0}, n, periodic, L.w).projected_area * h * h);
         entry.emplace_back(box_lo, box_hi, periodic, L.w);
+        entry.back().restrict_to(surface, periodic, L.w);
         area.push_back(entry.back().projected_area * h * h);
         double p = 0.0;
         for (int b = 0; b < nb; ++b) p += L.E0[static_cast<size_t>(b)] * area.back();
@@ -221,10 +227,12 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                         s.d = lights[l].w;
                         entry[l].sample(rng, s);
                         if (settings.tally_reduced) {
-                            trace_photon(grid, po, rng, s, pt, diffuse,
-                                         [&](std::int64_t idx, double len) { add(rt + idx * nq_bands, idx, len); });
+                            trace_photon<true>(grid, po, rng, s, pt, diffuse,
+                                               [&](std::int64_t idx, double track) { add(rt + idx * nq_bands, idx, track); },
+                                               settings.forced_first_collision);
                         } else {
-                            trace_photon(grid, po, rng, s, pt, diffuse, [](std::int64_t, double) {});
+                            trace_photon(grid, po, rng, s, pt, diffuse, [](std::int64_t, double) {},
+                                         settings.forced_first_collision);
                         }
                     }
                 };

@@ -1,7 +1,8 @@
 // Verification of the forward Monte Carlo (solvers/montecarlo): Philox known answers; slab
 // reflectance/transmittance and interior fluence against the independent slab reference
 // (z-tests with a fixed seed); energy balance; pure absorber and Beer-Lambert; same seed same
-// result; 1 rank (MPI_COMM_SELF) against all ranks; the replicated-memory limit.
+// result; 1 rank (MPI_COMM_SELF) against all ranks; the replicated-memory limit; the same
+// checks with the forced first collision (ForwardSettings::forced_first_collision).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -185,6 +186,107 @@ TEST(Forward, PureAbsorberFollowsBeerLambert) {
     const Counters& c = r.counters[0];
     EXPECT_EQ(c[escaped_zhi], 0.0);
     EXPECT_NEAR(c[escaped_direct] / c[incident], std::exp(-tau0 / mu0), 3.0 * r.counters_stderr[0][escaped_direct] / c[incident]);
+    EXPECT_NEAR(c[absorbed] + c[escaped_direct], c[incident], 1e-12 * c[incident]);
+}
+
+// The forced first collision (photon.h): slab R and T within 3 standard errors of the slab
+// reference and the interior fluence z-test as above; the direct beam is booked analytically,
+// exp(-tau0 / mu0) for every ray of the slab.
+TEST(Forward, ForcedFirstCollisionAgreesWithTheSlabReference) {
+    ForwardSettings forced;
+    forced.forced_first_collision = true;
+    for (const SlabCase c : {SlabCase{1.0, 0.9, 0.0, 1.0, 200000}, SlabCase{10.0, 0.99, 0.85, 0.5, 100000}}) {
+        Slab slab(MPI_COMM_WORLD, c.tau0, c.albedo, c.g);
+        const ForwardResult r = trace_forward(slab.d, slab.m, {beam(c.mu0)}, options(c.photons), forced);
+        const Counters& m = r.counters[0];
+        const Counters& se = r.counters_stderr[0];
+        const double P_in = m[incident];
+        const double R = m[escaped_zhi] / P_in, sR = se[escaped_zhi] / P_in;
+        const double T = m[escaped_zlo] / P_in, sT = se[escaped_zlo] / P_in;
+        test::SlabProblem p{c.tau0, c.albedo, c.g, c.mu0};
+        p.profile_levels = 64;
+        const test::SlabSolution ref = test::solve_slab(p);
+        EXPECT_NEAR(R, ref.reflected, 3.0 * sR) << "R: MC " << R << " ± " << sR << ", reference " << ref.reflected;
+        EXPECT_NEAR(T, ref.transmitted_diffuse, 3.0 * sT) << "T: MC " << T << " ± " << sT << ", reference " << ref.transmitted_diffuse;
+        EXPECT_LT(sR, 0.01 * ref.reflected + 1e-3);
+        EXPECT_NEAR(m[escaped_direct] / P_in, std::exp(-c.tau0 / c.mu0), 1e-12);
+        double z2 = 0.0, zmax = 0.0, count = 0.0;
+        for_each_cell(slab.d.local(), [&](int i, int j, int k) {
+            const size_t l = static_cast<size_t>(2 * (31 - k));
+            const double expect = (ref.fluence[l] + 4.0 * ref.fluence[l + 1] + ref.fluence[l + 2]) / 6.0;
+            const double z = (r.fluence[0](i, j, k) - expect) / r.fluence_stderr[0](i, j, k);
+            z2 += z * z;
+            zmax = std::max(zmax, std::abs(z));
+            count += 1.0;
+        });
+        double sums[2] = {z2, count}, tot[2];
+        MPI_Allreduce(sums, tot, 2, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+        double zmax_all = 0.0;
+        MPI_Allreduce(&zmax, &zmax_all, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+        const double rms = std::sqrt(tot[0] / tot[1]);
+        EXPECT_GT(rms, 0.85);
+        EXPECT_LT(rms, 1.25);
+        EXPECT_LT(zmax_all, 5.0);
+        if (test::world_rank() == 0)
+            std::printf("    forced: tau0 %g a %g g %g mu0 %g: R %.5f ± %.5f (ref %.5f), T %.5f ± %.5f (ref %.5f), "
+                        "fluence z rms %.3f max %.2f\n",
+                        c.tau0, c.albedo, c.g, c.mu0, R, sR, ref.reflected, T, sT, ref.transmitted_diffuse, rms, zmax_all);
+    }
+}
+
+// Forced first collision: the energy balance of the blob closes exactly with roulette's
+// zero-mean change and to 1e-3 without it; a pure absorber's reduced tally (now the expected
+// uncollided track along each entry ray) follows Beer-Lambert and absorbed + direct = incident.
+TEST(Forward, ForcedFirstCollisionEnergyBalanceAndBeerLambert) {
+    ForwardSettings forced;
+    forced.forced_first_collision = true;
+    const Int3 n{12, 10, 8};
+    Decomposition d(MPI_COMM_WORLD, n);
+    Medium m;
+    m.grid.n = n;
+    m.grid.h = 2.0;
+    m.rho = Field<double>(d.local(), 1, 1, 0.0);
+    for_each_cell(d.local(), [&](int i, int j, int k) {
+        const double x = (i + 0.5) / n[0] - 0.5, y = (j + 0.5) / n[1] - 0.5, z = (k + 0.5) / n[2] - 0.5;
+        m.rho(i, j, k) = std::max(0.0, 1.0 - 4.0 * (x * x + y * y + z * z));
+    });
+    m.bands = {BandOptics{"r", 0.8, 0.9, 0.85}, BandOptics{"b", 1.5, 0.99, 0.5}};
+    const std::vector<DirectionalLight> lights{{"sun", normalized(Vec3{0.5, 0.3, -0.8}), {1.0, 0.8}},
+                                               {"sky[0]", normalized(Vec3{-0.2, 0.7, -0.4}), {0.1, 0.3}}};
+    const ForwardResult r = trace_forward(d, m, lights, options(60000), forced);
+    for (int b = 0; b < 2; ++b) {
+        const Counters& c = r.counters[static_cast<size_t>(b)];
+        double escaped = c[escaped_direct];
+        for (int f = 0; f < 6; ++f) escaped += c[escaped_xlo + f];
+        EXPECT_NEAR(c[absorbed] + escaped - c[roulette_net], c[incident], 1e-12 * c[incident]);
+        EXPECT_NEAR(c[absorbed] + escaped, c[incident], 1e-3 * c[incident]);
+        EXPECT_GT(c[absorbed], 0.0);
+    }
+
+    const double tau0 = 3.0, mu0 = 0.6;
+    Slab slab(MPI_COMM_WORLD, tau0, 0.0, 0.85, {4, 4, 16});
+    forced.tally_reduced = true;
+    const ForwardResult a = trace_forward(slab.d, slab.m, {beam(mu0)}, options(40000), forced);
+    const double kappa = tau0 / 16;
+    double z2 = 0.0, count = 0.0, zmax = 0.0;
+    for_each_cell(slab.d.local(), [&](int i, int j, int k) {
+        EXPECT_EQ(a.fluence[0](i, j, k), 0.0);
+        const double depth = 16 - (k + 1);
+        const double expect = mu0 / kappa * (std::exp(-kappa * depth / mu0) - std::exp(-kappa * (depth + 1) / mu0));
+        const double z = (a.reduced[0](i, j, k) - expect) / a.reduced_stderr[0](i, j, k);
+        z2 += z * z;
+        count += 1.0;
+        zmax = std::max(zmax, std::abs(z));
+    });
+    double sums[2] = {z2, count}, tot[2];
+    MPI_Allreduce(sums, tot, 2, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+    const double rms = std::sqrt(tot[0] / tot[1]);
+    EXPECT_GT(rms, 0.8);
+    EXPECT_LT(rms, 1.3);
+    EXPECT_LT(zmax, 5.0);
+    const Counters& c = a.counters[0];
+    EXPECT_EQ(c[escaped_zhi], 0.0);
+    EXPECT_NEAR(c[escaped_direct] / c[incident], std::exp(-tau0 / mu0), 1e-12);
     EXPECT_NEAR(c[absorbed] + c[escaped_direct], c[incident], 1e-12 * c[incident]);
 }
 

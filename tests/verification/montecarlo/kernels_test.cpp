@@ -1,7 +1,9 @@
 // The Monte Carlo inner kernels against independent answers: the azimuth's sincos_2pi against
 // libm; the grid walk (padded grid, empty-space skipping, leaving through the ghost layer)
 // against chord lengths computed cell by cell by slab clipping; cell_of inverts index; a walk
-// on the bounding box of the medium equals the walk on the whole domain (segments, exit face).
+// on the bounding box of the medium equals the walk on the whole domain (segments, exit face);
+// the live-pixel entry mask is conservative: every entry ray that meets a non-empty cell (by
+// chord lengths, or by the walk when periodic) starts on a live pixel.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -11,6 +13,7 @@
 
 #include "solvers/montecarlo/empty_space.h"
 #include "solvers/montecarlo/grid_walk.h"
+#include "solvers/montecarlo/photon.h"
 #include "solvers/montecarlo/sincos.h"
 
 namespace nimbus::mc {
@@ -143,6 +146,74 @@ TEST(Kernels, WalkOnTheMediumBoxEqualsWalkOnTheDomain) {
         for (const auto& [c, len] : segf) EXPECT_NEAR(segb[c], len, 1e-12);
     }
     EXPECT_EQ(faces_seen, 63);  // every face of the domain was reached
+}
+
+
+// Unmasked entry samples against the mask: a ray that meets a non-empty cell must start on a
+// live pixel; the mask must also drop some area (the media have empty columns). Non-periodic:
+// hits by independent chord lengths; periodic in x, y: by the walk (rays wrap).
+TEST(Kernels, EntryMaskKeepsEveryRayThatMeetsTheMedium) {
+    const std::array<int, 3> n{11, 9, 8};
+    std::mt19937_64 gen(21);
+    std::uniform_real_distribution<double> U(0.0, 1.0);
+    std::vector<float> kappa(static_cast<size_t>(n[0]) * n[1] * n[2], 0.0f);
+    for (int k = 0; k < n[2]; ++k)
+        for (int j = 0; j < n[1]; ++j)
+            for (int i = 0; i < n[0]; ++i)
+                if ((i > 3 && i < 7 && j > 2 && j < 6 && k > 1 && k < 6) || U(gen) < 0.01)
+                    kappa[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] = 0.5f;
+    auto nonempty = [&](const std::array<int, 3>& c) {
+        return kappa[(static_cast<size_t>(c[2]) * n[1] + c[1]) * n[0] + c[0]] > 0.0f;
+    };
+    const VoxelGrid vg = make_voxels(n, kappa);
+    for (const bool periodic_xy : {false, true}) {
+        const std::array<bool, 3> periodic{periodic_xy, periodic_xy, false};
+        const GridView g = vg.view(periodic);
+        const auto surface = surface_cells(n, periodic, nonempty);
+        int narrowed = 0;
+        for (int dir = 0; dir < 12; ++dir) {
+            const double mu = -0.1 - 0.9 * U(gen), phi = 2.0 * std::numbers::pi * U(gen), r = std::sqrt(1.0 - mu * mu);
+            const Vec3 w{r * std::cos(phi), r * std::sin(phi), mu};
+            const EntrySampler all({0, 0, 0}, n, periodic, w);
+            EntrySampler live = all;
+            live.restrict_to(surface, periodic, w);
+            EXPECT_LE(live.projected_area, all.projected_area);
+            narrowed += live.projected_area < all.projected_area;
+            int hits = 0;
+            for (std::uint64_t p = 0; p < 3000; ++p) {
+                PathRng rng(3, static_cast<std::uint32_t>(dir), p);
+                PathState s;
+                s.d = w;
+                all.sample(rng, s);
+                const Vec3 x0{s.cell[0] + s.frac[0], s.cell[1] + s.frac[1], s.cell[2] + s.frac[2]};
+                bool hit = false;
+                if (periodic_xy) {
+                    PathState t = s;
+                    walk_optical_depth(g, t, std::numeric_limits<double>::infinity(), [&](std::int64_t, double len) { hit |= len > 0; });
+                } else {
+                    for (int k = 0; k < n[2] && !hit; ++k)
+                        for (int j = 0; j < n[1] && !hit; ++j)
+                            for (int i = 0; i < n[0] && !hit; ++i)
+                                hit = nonempty({i, j, k}) && chord(x0, w, {i, j, k}) > 0.0;
+                }
+                if (!hit) continue;
+                ++hits;
+                // the face it starts on (the plane it lies on; corners are measure zero)
+                bool live_pixel = false;
+                for (int f = 0; f < live.nfaces; ++f) {
+                    const int a = live.face[f] / 2;
+                    if (x0[a] != (live.face[f] % 2 ? n[a] : 0.0)) continue;
+                    const int u = (a + 1) % 3, v = (a + 2) % 3;
+                    const std::int32_t pixel = s.cell[u] + n[u] * s.cell[v];
+                    live_pixel |= !live.masked[f] ||
+                                  std::find(live.live[f].begin(), live.live[f].end(), pixel) != live.live[f].end();
+                }
+                EXPECT_TRUE(live_pixel) << "ray " << p << " of direction " << dir << (periodic_xy ? " (periodic)" : "");
+            }
+            EXPECT_GT(hits, 100);
+        }
+        EXPECT_GT(narrowed, 6);
+    }
 }
 
 }  // namespace
