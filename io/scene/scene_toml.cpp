@@ -287,6 +287,7 @@ void read_lpm(const TableReader& t, LpmOptions& o) {
     t.read("solution_bins", o.solution_bins);
     t.read("iterations", o.iterations);
     t.read("epsilon", o.epsilon);
+    t.read("tail", o.tail);
 }
 
 void read_psf(const TableReader& t, PsfOptions& o) {
@@ -307,7 +308,7 @@ void read_model(const TableReader& t, ModelSpec& m) {
     read_dom(t.table("dom", {"quadrature", "order", "polar", "azimuthal", "legendre_order", "delta_m",
                              "scheme", "iteration", "tolerance", "max_iterations", "tile_rows"}),
              m.dom);
-    read_lpm(t.table("lpm", {"p", "refinement", "k", "solution_bins", "iterations", "epsilon"}), m.lpm);
+    read_lpm(t.table("lpm", {"p", "refinement", "k", "solution_bins", "iterations", "epsilon", "tail"}), m.lpm);
     read_psf(t.table("psf", {"levels", "step_growth"}), m.psf);
 }
 

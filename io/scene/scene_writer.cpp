@@ -63,6 +63,7 @@ void write_lpm(std::ostream& o, const LpmOptions& l) {
     o << "solution_bins = " << l.solution_bins << "\n";
     o << "iterations = " << l.iterations << "\n";
     o << "epsilon = " << num(l.epsilon) << "\n";
+    o << "tail = " << str(l.tail) << "\n";
 }
 
 void write_psf(std::ostream& o, const PsfOptions& p) {

@@ -46,6 +46,7 @@ int main(int argc, char** argv) {
     o.refinement = argc > 5 ? std::atoi(argv[5]) : 1;
     const int repeats = argc > 6 ? std::atoi(argv[6]) : 3;
     o.epsilon = 0.0;
+    o.tail = "none";  // the map sweeps alone (the P1 tail is timed by nimbus run: model/lpm/solve)
     o.validate();
 
     Scene scene = default_scene({fmt::format("grid.n=[{},{},{}]", N, N, N), fmt::format("grid.cell_size={}", 25.0 * 96 / N)});

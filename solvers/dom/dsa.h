@@ -13,13 +13,18 @@
 // without it DSA diverged on the tau-100 cube (6.25 mean free paths per cell: change ~1.2 per
 // iteration), with it the cube converges in the test's bound (tests/verification/dom).
 //
-// Collective over d.comm(). The matrix is assembled once; each correct() solves one system.
+// Collective over d.comm(). The operator does not change between iterations (only the
+// right-hand side does): the hypre grid, matrix and PFMG-PCG setup are built ONCE in the
+// constructor and every correct() is one solve (about half of the wall time went into the
+// per-iteration re-assembly and setup before).
 #pragma once
 
+#include <memory>
 #include <vector>
 
 #include "solvers/diffusion/assemble.h"
 #include "solvers/diffusion/diffusion_problem.h"
+#include "solvers/diffusion/hypre_struct.h"
 #include "solvers/dom/band_problem.h"
 #include "src/core/decomposition.h"
 #include "src/core/report.h"
@@ -31,8 +36,12 @@ class DiffusionSynthetic {
 public:
     // Collective. p must outlive this object.
     DiffusionSynthetic(const Decomposition& d, const BandProblem& p, double tolerance);
+    ~DiffusionSynthetic();
+    DiffusionSynthetic(const DiffusionSynthetic&) = delete;
+    DiffusionSynthetic& operator=(const DiffusionSynthetic&) = delete;
     // Collective. Adds δ to fluence (owned cells). Returns the linear solver's iterations (0
-    // when the right-hand side vanishes everywhere).
+    // when the right-hand side vanishes everywhere). Throws Error (on every rank) when the
+    // true relative residual stays above the tolerance.
     int correct(const Field<double>& fluence_old, Field<double>& fluence, Report& report);
     // The correction of the last call (owned cells, W/m²).
     const Field<double>& last_correction() const { return delta_; }
@@ -45,6 +54,14 @@ private:
     DiffusionOptions opt_;
     double kappa_floor_ = 0.0;
     Field<double> delta_;
+    // The hypre system on d.local() ∩ region (set up once; null when the region is empty).
+    Box box_;
+    std::vector<char> full_;  // per cell of box_, x fastest
+    std::unique_ptr<diffusion::hypre::Grid> grid_;
+    std::unique_ptr<diffusion::hypre::SymmetricStencil7> stencil_;
+    std::unique_ptr<diffusion::hypre::Matrix> A_;
+    std::unique_ptr<diffusion::hypre::Vector> b_, x_, r_;
+    std::unique_ptr<diffusion::hypre::Solver> solver_;
 };
 
 }  // namespace nimbus::dom

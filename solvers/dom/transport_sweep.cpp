@@ -65,28 +65,34 @@ void TransportSweeper::reduce_octant(const Field<double>& psi, int o, SweepOutpu
     const Box& own = d_.local();
     const Box& g = d_.global();
     const double area = h_ * h_;
-    for_each_cell(own, [&](int i, int j, int k) {
-        const double* p = &psi(i, j, k);
-        const std::ptrdiff_t c = cell_offset(own, i, j, k);
-        accumulate_moments(nd, nmom, oc.wY.data(), p, out.phi.data() + c * nmom);
-        double f = 0.0, F[3] = {0.0, 0.0, 0.0};
-        for (int n = 0; n < nd; ++n) {
-            const double wp = oc.weight[static_cast<size_t>(n)] * p[n];
-            const Vec3& w = oc.dir[static_cast<size_t>(n)];
-            f += wp;
-            F[0] += wp * w.x;
-            F[1] += wp * w.y;
-            F[2] += wp * w.z;
-        }
-        out.fluence.data()[c] += f;
-        for (int a = 0; a < 3; ++a) out.flux.data()[c * 3 + a] += F[a];
-        const int idx[3] = {i, j, k};
-        for (int a = 0; a < 3; ++a) {
-            if (d_.periodic(a)) continue;
-            const int s = oc.octant.s[a];
-            const bool edge = s > 0 ? idx[a] == g.hi[a] - 1 : idx[a] == g.lo[a];
-            if (edge) out.leakage[static_cast<size_t>(2 * a + (s > 0 ? 1 : 0))] += area * std::abs(F[a]);
-        }
+    for_octant_size(nd, [&](auto size) {
+        constexpr int ND = decltype(size)::value;
+        for_each_cell(own, [&](int i, int j, int k) {
+            const double* p = &psi(i, j, k);
+            const std::ptrdiff_t c = cell_offset(own, i, j, k);
+            if constexpr (ND > 0)
+                accumulate_moments_n<ND>(nmom, oc.wY.data(), p, out.phi.data() + c * nmom);
+            else
+                accumulate_moments(nd, nmom, oc.wY.data(), p, out.phi.data() + c * nmom);
+            double f = 0.0, F[3] = {0.0, 0.0, 0.0};
+            for (int n = 0; n < nd; ++n) {
+                const double wp = oc.weight[static_cast<size_t>(n)] * p[n];
+                const Vec3& w = oc.dir[static_cast<size_t>(n)];
+                f += wp;
+                F[0] += wp * w.x;
+                F[1] += wp * w.y;
+                F[2] += wp * w.z;
+            }
+            out.fluence.data()[c] += f;
+            for (int a = 0; a < 3; ++a) out.flux.data()[c * 3 + a] += F[a];
+            const int idx[3] = {i, j, k};
+            for (int a = 0; a < 3; ++a) {
+                if (d_.periodic(a)) continue;
+                const int s = oc.octant.s[a];
+                const bool edge = s > 0 ? idx[a] == g.hi[a] - 1 : idx[a] == g.lo[a];
+                if (edge) out.leakage[static_cast<size_t>(2 * a + (s > 0 ? 1 : 0))] += area * std::abs(F[a]);
+            }
+        });
     });
 }
 
@@ -121,8 +127,18 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
         std::vector<double>& Sq = source_;
         Sq.resize(static_cast<size_t>(own.cells() * nd));
         const double t_src = MPI_Wtime();
-        for (std::ptrdiff_t cell = 0; cell < own.cells(); ++cell)
-            cell_source(nd, nl, nmom, amp ? amp + cell * nl : nullptr, P, Y, mom + cell * nmom, Sq.data() + cell * nd);
+        for_octant_size(nd, [&](auto size) {
+            constexpr int ND = decltype(size)::value;
+            const std::ptrdiff_t ncell = own.cells();
+            double* S = Sq.data();
+            for (std::ptrdiff_t cell = 0; cell < ncell; ++cell) {
+                const double* A = amp ? amp + cell * nl : nullptr;
+                if constexpr (ND > 0)
+                    cell_source_n<ND>(nl, nmom, A, P, Y, mom + cell * nmom, S + cell * ND);
+                else
+                    cell_source(nd, nl, nmom, A, P, Y, mom + cell * nmom, S + cell * nd);
+            }
+        });
         timing_.moment_seconds += MPI_Wtime() - t_src;
         const double* Sp = Sq.data();
         double* pp = psi.data();

@@ -18,7 +18,8 @@ public:
     std::string name() const override { return "lpm"; }
     nlohmann::json options() const override {
         return {{"p", opt_.p}, {"refinement", opt_.refinement}, {"k", opt_.k},
-                {"solution_bins", opt_.solution_bins}, {"iterations", opt_.iterations}, {"epsilon", opt_.epsilon}};
+                {"solution_bins", opt_.solution_bins}, {"iterations", opt_.iterations}, {"epsilon", opt_.epsilon},
+                {"tail", opt_.tail}};
     }
 
     void solve(const SolveContext& ctx, DiffuseSolution& out) override {
@@ -34,7 +35,7 @@ public:
         out = DiffuseSolution{};
         nlohmann::json bands = nlohmann::json::array();
         for (int b = 0; b < nb; ++b) {
-            lpm::BandResult r = lpm::solve_band(d, ctx.medium, ctx.light, b, opt_, ang, &progress);
+            lpm::BandResult r = lpm::solve_band(d, ctx.medium, ctx.light, b, opt_, ang, &progress, &ctx.report);
             const double total = std::accumulate(r.sweep_seconds.begin(), r.sweep_seconds.end(), 0.0);
             const double mean = r.sweep_seconds.empty() ? 0.0 : total / static_cast<double>(r.sweep_seconds.size());
             bands.push_back({{"band", ctx.medium.bands[static_cast<size_t>(b)].name},
@@ -46,7 +47,11 @@ public:
                              {"escaped_W", r.escaped},
                              {"absorbed_W", r.absorbed},
                              {"unpropagated_W", r.remaining},
-                             {"truncated_W", r.truncated}});
+                             {"truncated_W", r.truncated},
+                             {"unpropagated_W_per_iteration", r.remaining_history},
+                             {"tail", opt_.tail},
+                             {"tail_geometric_factor", r.tail_factor},
+                             {"tail_diffusion_solver_iterations", r.tail_solver_iterations}});
             if (d.rank() == 0)
                 log::info("lpm band {}: {} iterations, max U {:.3g} of the first-scatter maximum, {:.3g} s per map sweep, "
                           "unpropagated {:.3g} of the scattered power",

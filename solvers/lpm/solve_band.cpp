@@ -5,6 +5,7 @@
 #include <algorithm>
 
 #include "solvers/lpm/map_sweep.h"
+#include "solvers/lpm/tail.h"
 #include "src/core/halo.h"
 #include "src/physics/lights.h"
 
@@ -23,7 +24,7 @@ double global_max(double v, MPI_Comm c) {
 }  // namespace
 
 BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransport& light, int band,
-                      const LpmOptions& opt, const Angular& ang, Progress* progress) {
+                      const LpmOptions& opt, const Angular& ang, Progress* progress, Report* report) {
     const BandOptics& bo = m.bands[static_cast<size_t>(band)];
     const Box& own = d.local();
     const int nm = ang.coarse_bins();
@@ -81,7 +82,12 @@ BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransp
     acc.fluence = &fluence;
     acc.flux = in.flux ? &flux : nullptr;
 
+    const bool geometric = opt.tail == "geometric";
+    Field<double> previous;  // fluence before the last iteration (geometric tail)
+    double previous_remaining = r.source;
     for (int it = 0; it < opt.iterations && u_max0 > 0.0; ++it) {
+        if (geometric) previous = fluence;
+        if (it > 0) previous_remaining = r.remaining_history.back();
         for (int f : kMapOrder) {
             const double t0 = MPI_Wtime();
             sweep_map(d, f, in, acc);
@@ -89,11 +95,15 @@ BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransp
             if (progress) progress->update(static_cast<double>(band * opt.iterations * 6) + static_cast<double>(r.sweep_seconds.size()));
         }
         ++r.iterations;
-        double u_max = 0.0;
+        double u_max = 0.0, left = 0.0;
         for_each_cell(own, [&](int i, int j, int k) {
-            for (int c = 0; c < nm; ++c) u_max = std::max(u_max, U(i, j, k, c));
+            for (int c = 0; c < nm; ++c) {
+                u_max = std::max(u_max, U(i, j, k, c));
+                left += V * ang.coarse_solid_angle(c) * U(i, j, k, c);
+            }
         });
         r.max_U.push_back(global_max(u_max, d.comm()) / u_max0);
+        r.remaining_history.push_back(global_sum(left, d.comm()));
         if (r.max_U.back() < opt.epsilon) break;
     }
 
@@ -111,6 +121,22 @@ BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransp
         }
     r.truncated = global_sum(acc.truncated, d.comm());
     r.wait_seconds = acc.wait_seconds;
+
+    // The light left in U (tail.h).
+    if (geometric && r.iterations > 0) {
+        r.tail_factor = geometric_tail_factor(r.remaining, previous_remaining);
+        add_geometric_tail(fluence, previous, r.tail_factor);
+        // The flux, when asked for, is left without the tail (its increment is not kept).
+    } else if (opt.tail == "diffusion" && r.remaining > 0.0) {
+        Report scratch;
+        DiffusionTail t = diffusion_tail(d, m, band, U, kappa, ang, report ? *report : scratch);
+        r.tail_solver_iterations = t.solver_iterations;
+        for_each_cell(own, [&](int i, int j, int k) {
+            fluence(i, j, k) += t.fluence(i, j, k);
+            if (in.flux)
+                for (int c = 0; c < 3; ++c) flux(i, j, k, c) += t.flux(i, j, k, c);
+        });
+    }
     exchange_halo(fluence, d);
     r.fluence = std::move(fluence);
     if (in.flux) {

@@ -7,7 +7,9 @@
 //
 // Energy bookkeeping (watts, global sums), exact to round-off for any iteration count:
 //   source = Σ_cells V kappa a Σ_l E0_l T_l  =  escaped + absorbed + remaining + truncated,
-//   absorbed = Σ V (1 - a) kappa φ,  remaining = Σ V Σ_m |Ω^m| U^m (unpropagated at the end).
+//   absorbed = Σ V (1 - a) kappa φ,  remaining = Σ V Σ_m |Ω^m| U^m (unpropagated at the end),
+// all measured BEFORE the tail (opt.tail, tail.h) adds its estimate of what `remaining` would
+// still contribute to the fluence (and flux).
 #pragma once
 
 #include <vector>
@@ -16,6 +18,7 @@
 #include "src/core/decomposition.h"
 #include "src/core/field.h"
 #include "src/core/progress.h"
+#include "src/core/report.h"
 #include "src/model/model.h"
 #include "src/model/options.h"
 #include "src/scene/medium.h"
@@ -32,13 +35,18 @@ struct BandResult {
     double source = 0.0, escaped = 0.0, absorbed = 0.0, remaining = 0.0;  // W, global
     double escaped_face[3][2] = {};  // W through the domain face [axis][low, high], global
     double truncated = 0.0;          // W dropped by cyclic sweeps of periodic axes, global
+    std::vector<double> remaining_history;  // W unpropagated after each iteration, global
+    double tail_factor = 0.0;        // geometric tail: rho/(1-rho) applied to the last increment
+    int tail_solver_iterations = 0;  // diffusion tail: linear-solver iterations
 };
 
 // The map order of one iteration: faces -Z, +Z, +X, -X, +Y, -Y.
 inline constexpr int kMapOrder[6] = {5, 4, 0, 1, 2, 3};
 
 // Collective. m.rho must have its ghost layer exchanged; light.tau_rho per light term.
+// report: receives the diffusion tail's solver record (a scratch report when null).
 BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransport& light, int band,
-                      const LpmOptions& opt, const Angular& ang, Progress* progress = nullptr);
+                      const LpmOptions& opt, const Angular& ang, Progress* progress = nullptr,
+                      Report* report = nullptr);
 
 }  // namespace nimbus::lpm

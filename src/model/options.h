@@ -41,14 +41,14 @@ struct DiffusionOptions {
 // Discrete ordinates (solvers/dom).
 struct DomOptions {
     std::string quadrature = "level-symmetric";  // level-symmetric | product | cube96
-    int order = 8;                  // S_N order for level-symmetric (even, 2..16)
+    int order = 4;                  // S_N order for level-symmetric (even, 2..16); 4: see solvers/dom/README.md
     int polar = 8;                  // product set: Gauss-Legendre polar points (over [-1, 1])
     int azimuthal = 16;             // product set: Chebyshev azimuths
-    int legendre_order = 8;         // L: HG expanded in Legendre moments 0..L
+    int legendre_order = 3;         // L: HG expanded in Legendre moments 0..L (delta-M f = chi_{L+1})
     bool delta_m = true;            // delta-M scaling of the truncated phase function (Wiscombe 1977)
     std::string scheme = "step";    // step | diamond (with negative-flux fix-up)
     std::string iteration = "dsa";  // source | dsa | gmres
-    double tolerance = 1e-6;        // relative change / residual of the scalar flux
+    double tolerance = 1e-4;        // relative change / residual of the scalar flux
     int max_iterations = 500;
     int tile_rows = 8;              // KBA block rows across the slab face
     void validate() const;
@@ -62,6 +62,8 @@ struct LpmOptions {
     int solution_bins = 1;      // solution moments: 1 = fluence only, 4 = fluence + flux F
     int iterations = 3;         // map sweeps (all six maps) at most
     double epsilon = 1e-3;      // stop when max U < epsilon x max first-scatter source
+    std::string tail = "diffusion";  // light left in U at the stop: none | geometric | diffusion
+                                     // (solvers/lpm/tail.h)
     void validate() const;
 };
 

@@ -329,7 +329,7 @@ TEST(MakeQuadrature, DispatchesOnOptions) {
     EXPECT_EQ(make_quadrature(opt).size(), 96);
     opt.quadrature = "lebedev";
     EXPECT_THROW(make_quadrature(opt), Error);
-    EXPECT_EQ(make_quadrature(DomOptions{}).size(), 80);  // default S8
+    EXPECT_EQ(make_quadrature(DomOptions{}).size(), DomOptions{}.order * (DomOptions{}.order + 2));  // default S_N
 }
 
 }  // namespace

@@ -54,6 +54,7 @@ inline LpmOptions lpm_options(int p, int k, int iterations, double epsilon = 0.0
     o.iterations = iterations;
     o.epsilon = epsilon;
     o.refinement = refinement;
+    o.tail = "none";  // the map iteration alone; the tails are tested in tail_test.cpp
     return o;
 }
 
