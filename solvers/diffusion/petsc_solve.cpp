@@ -12,23 +12,15 @@
 #include <fmt/format.h>
 
 #include "solvers/diffusion/linear_solve.h"
+#include "solvers/diffusion/petsc_support.h"
 #include "src/core/error.h"
 
 namespace nimbus::diffusion {
 namespace {
 
-void check(PetscErrorCode ierr, const char* what) {
-    if (ierr != 0) throw Error(fmt::format("diffusion (petsc): {} failed with PETSc error {}", what, static_cast<int>(ierr)));
-}
+void check(PetscErrorCode ierr, const char* what) { petsc::check(ierr, "diffusion (petsc)", what); }
 
-// PETSc is initialized here only if the program has not done it, on the given communicator.
-void ensure_petsc(MPI_Comm comm) {
-    PetscBool done = PETSC_FALSE;
-    check(PetscInitialized(&done), "PetscInitialized");
-    if (done) return;
-    PETSC_COMM_WORLD = comm;
-    check(PetscInitializeNoArguments(), "PetscInitialize");
-}
+void ensure_petsc(MPI_Comm comm) { petsc::ensure_initialized(comm); }
 
 // Owning handles, destroyed in reverse order of declaration.
 struct DMHandle {

@@ -7,22 +7,15 @@
 #include <algorithm>
 #include <cmath>
 
+#include "solvers/diffusion/petsc_support.h"
 #include "src/core/error.h"
 
 namespace nimbus::dom {
 namespace {
 
-void check(PetscErrorCode ierr, const char* what) {
-    if (ierr != 0) throw Error(fmt::format("dom (gmres): {} failed with PETSc error {}", what, static_cast<int>(ierr)));
-}
+void check(PetscErrorCode ierr, const char* what) { petsc::check(ierr, "dom (gmres)", what); }
 
-void ensure_petsc(MPI_Comm comm) {
-    PetscBool done = PETSC_FALSE;
-    check(PetscInitialized(&done), "PetscInitialized");
-    if (done) return;
-    PETSC_COMM_WORLD = comm;
-    check(PetscInitializeNoArguments(), "PetscInitialize");
-}
+void ensure_petsc(MPI_Comm comm) { petsc::ensure_initialized(comm); }
 
 // What MatMult needs; owned by gmres_band's frame.
 struct ShellContext {
