@@ -131,9 +131,12 @@ inline void step_weights(double kappa, double ds, double& e, double& w) {
     }
 }
 
-template <int NB, bool kAttenuate>
-long march_steps(const MarchView& v, const RaySteps& r, int m_begin, int m_end, double eps,
-                 double* C, double* T) {
+// The one stepping loop of the ray caster: visits the steps [m_begin, m_end) in order, skipping
+// empty occupancy blocks without sampling; for every other step it takes the trilinear sample
+// s[0] = rho, s[1 + b] = J_b at the step midpoint and calls visit(m, s), which returns false to
+// stop the march (early termination). NB as in march_steps. Returns the number of steps sampled.
+template <int NB, class Visit>
+long for_each_sample(const MarchView& v, const RaySteps& r, int m_begin, int m_end, Visit&& visit) {
     const int nb = NB > 0 ? NB : v.nbands;
     const std::ptrdiff_t nc = 1 + nb;
     const std::ptrdiff_t sx = v.sx, sy = v.sy, sz = v.sz;
@@ -168,10 +171,19 @@ long march_steps(const MarchView& v, const RaySteps& r, int m_begin, int m_end, 
         double s[NB > 0 ? 1 + NB : 1 + kMaxBands] = {};
         trilinear<NB>(p, sx, sy, sz, nc, cx - i0, cy - j0, cz - k0, s);
         ++samples;
-        ++m;
+        if (!visit(m++, static_cast<const double*>(s))) break;
+    }
+    return samples;
+}
+
+template <int NB, bool kAttenuate>
+long march_steps(const MarchView& v, const RaySteps& r, int m_begin, int m_end, double eps,
+                 double* C, double* T) {
+    const int nb = NB > 0 ? NB : v.nbands;
+    return for_each_sample<NB>(v, r, m_begin, m_end, [&](int, const double* s) {
         const double rho = s[0];
         if constexpr (kAttenuate) {
-            if (!(rho > 0.0)) continue;  // nothing to attenuate or emit (J = 0 where rho = 0)
+            if (!(rho > 0.0)) return true;  // nothing to attenuate or emit (J = 0 where rho = 0)
             double Tmax = 0.0, e = 1.0, w = r.ds;
             for (int b = 0; b < nb; ++b) {
                 if (b == 0 || !v.uniform_sigma) step_weights(rho * v.sigma_t[b], r.ds, e, w);
@@ -179,12 +191,12 @@ long march_steps(const MarchView& v, const RaySteps& r, int m_begin, int m_end, 
                 T[b] *= e;
                 Tmax = std::max(Tmax, T[b]);
             }
-            if (Tmax < eps) break;
+            return !(Tmax < eps);
         } else {
             for (int b = 0; b < nb; ++b) C[b] += s[1 + b] * r.ds;
+            return true;
         }
-    }
-    return samples;
+    });
 }
 
 }  // namespace nimbus

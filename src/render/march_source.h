@@ -1,6 +1,7 @@
 // Ray-march kernels for a view-path-dependent source (view_source.h). Pure apart from the
-// source's own pure calls (no MPI, no allocation). The step lattice, the empty-block skips and
-// the per-step integration are those of march.h; in addition, per step with rho > 0:
+// source's own pure calls (no MPI, no allocation). Both run on march.h's one stepping loop
+// (for_each_sample: the step lattice, the empty-block skips, the trilinear samples) with the
+// per-step integration of march_steps; in addition, per step with rho > 0:
 //   C_b += T_b (J_b + rho sigma_s,b H_b) w,   T_b *= e        (w, e: step_weights, march.h)
 // where H is the source value of the latest sample point (view_source.h). A rank's piece does
 // not know the H left by the pieces in front, so until its first sample point on the lattice
@@ -40,42 +41,13 @@ inline int sample_level(double spacing, double ds) {
 template <int NB>
 void march_depth(const MarchView& v, const RaySteps& r, int m_begin, int m_end, double& tau,
                  double& s) {
-    const int nb = NB > 0 ? NB : v.nbands;
-    const std::ptrdiff_t nc = 1 + nb;
-    const std::ptrdiff_t sx = v.sx, sy = v.sy, sz = v.sz;
-    const int bs = 1 << v.block_shift;
-    for (int m = m_begin; m < m_end;) {
-        double q[3];
-        step_midpoint(r, v, m, q);
-        const int ix = clamped_cell(q[0], v.n[0]), iy = clamped_cell(q[1], v.n[1]),
-                  iz = clamped_cell(q[2], v.n[2]);
-        const int bx = (ix - v.owned.lo[0]) >> v.block_shift, by = (iy - v.owned.lo[1]) >> v.block_shift,
-                  bz = (iz - v.owned.lo[2]) >> v.block_shift;
-        if (!v.occupied[(static_cast<std::ptrdiff_t>(bz) * v.nblocks[1] + by) * v.nblocks[0] + bx]) {
-            double t_out = std::numeric_limits<double>::infinity();
-            const int b3[3] = {bx, by, bz};
-            for (int a = 0; a < 3; ++a) {
-                if (r.d[a] == 0.0) continue;
-                const int face = r.d[a] > 0 ? std::min(v.owned.lo[a] + (b3[a] + 1) * bs, v.owned.hi[a])
-                                            : v.owned.lo[a] + b3[a] * bs;
-                t_out = std::min(t_out, (v.origin[a] + face * v.h - r.o[a]) * r.inv_d[a]);
-            }
-            const double next = (t_out - r.t_enter) / r.ds - 0.5;
-            m = next >= m_end ? m_end : std::max(m + 1, static_cast<int>(std::ceil(next)));
-            continue;
+    for_each_sample<NB>(v, r, m_begin, m_end, [&](int, const double* smp) {
+        if (smp[0] > 0.0) {
+            tau += smp[0] * r.ds;
+            s += r.ds;
         }
-        const double cx = q[0] - 0.5, cy = q[1] - 0.5, cz = q[2] - 0.5;
-        const int i0 = static_cast<int>(cx + 1.0) - 1, j0 = static_cast<int>(cy + 1.0) - 1,
-                  k0 = static_cast<int>(cz + 1.0) - 1;
-        const float* p = v.data + (k0 - v.alo[2]) * sz + (j0 - v.alo[1]) * sy + (i0 - v.alo[0]) * sx;
-        double smp[NB > 0 ? 1 + NB : 1 + kMaxBands] = {};
-        trilinear<NB>(p, sx, sy, sz, nc, cx - i0, cy - j0, cz - k0, smp);
-        const double rho = smp[0];
-        ++m;
-        if (!(rho > 0.0)) continue;
-        tau += rho * r.ds;
-        s += r.ds;
-    }
+        return true;
+    });
 }
 
 // march_steps<NB, true> plus the view-path source (header comment). sigma_s: per band, 1/m per
@@ -85,41 +57,10 @@ long march_steps_source(const MarchView& v, const RaySteps& r, int m_begin, int 
                         const ViewRaySource& src, const double* sigma_s, double* C, double* T,
                         ViewPathState& st) {
     const int nb = NB > 0 ? NB : v.nbands;
-    const std::ptrdiff_t nc = 1 + nb;
-    const std::ptrdiff_t sx = v.sx, sy = v.sy, sz = v.sz;
-    const int bs = 1 << v.block_shift;
     const Vec3 w_out = -r.d;
-    long samples = 0;
-    for (int m = m_begin; m < m_end;) {
-        double q[3];
-        step_midpoint(r, v, m, q);
-        const int ix = clamped_cell(q[0], v.n[0]), iy = clamped_cell(q[1], v.n[1]),
-                  iz = clamped_cell(q[2], v.n[2]);
-        const int bx = (ix - v.owned.lo[0]) >> v.block_shift, by = (iy - v.owned.lo[1]) >> v.block_shift,
-                  bz = (iz - v.owned.lo[2]) >> v.block_shift;
-        if (!v.occupied[(static_cast<std::ptrdiff_t>(bz) * v.nblocks[1] + by) * v.nblocks[0] + bx]) {
-            double t_out = std::numeric_limits<double>::infinity();
-            const int b3[3] = {bx, by, bz};
-            for (int a = 0; a < 3; ++a) {
-                if (r.d[a] == 0.0) continue;
-                const int face = r.d[a] > 0 ? std::min(v.owned.lo[a] + (b3[a] + 1) * bs, v.owned.hi[a])
-                                            : v.owned.lo[a] + b3[a] * bs;
-                t_out = std::min(t_out, (v.origin[a] + face * v.h - r.o[a]) * r.inv_d[a]);
-            }
-            const double next = (t_out - r.t_enter) / r.ds - 0.5;
-            m = next >= m_end ? m_end : std::max(m + 1, static_cast<int>(std::ceil(next)));
-            continue;
-        }
-        const double cx = q[0] - 0.5, cy = q[1] - 0.5, cz = q[2] - 0.5;
-        const int i0 = static_cast<int>(cx + 1.0) - 1, j0 = static_cast<int>(cy + 1.0) - 1,
-                  k0 = static_cast<int>(cz + 1.0) - 1;
-        const float* p = v.data + (k0 - v.alo[2]) * sz + (j0 - v.alo[1]) * sy + (i0 - v.alo[0]) * sx;
-        double s[NB > 0 ? 1 + NB : 1 + kMaxBands] = {};
-        trilinear<NB>(p, sx, sy, sz, nc, cx - i0, cy - j0, cz - k0, s);
-        ++samples;
-        const int m_here = m++;
+    return for_each_sample<NB>(v, r, m_begin, m_end, [&](int m_here, const double* s) {
         const double rho = s[0];
-        if (!(rho > 0.0)) continue;
+        if (!(rho > 0.0)) return true;
         // Sample points (view_source.h): the piece's first medium step (H_spec) and the
         // lattice multiples of 2^k.
         // m is a multiple of 2^k iff k <= ctz(m); the cheap bound rules most steps out.
@@ -154,9 +95,8 @@ long march_steps_source(const MarchView& v, const RaySteps& r, int m_begin, int 
         }
         st.tau += rho * r.ds;
         st.s += r.ds;
-        if (Tmax < eps) break;
-    }
-    return samples;
+        return !(Tmax < eps);
+    });
 }
 
 }  // namespace nimbus
