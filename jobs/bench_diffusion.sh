@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Diffusion model benchmark (jobs/bench/bench_diffusion.cpp) at 1 and 2 ranks.
 #   jobs/bench_diffusion.sh [build-dir] [N ...]      e.g. jobs/bench_diffusion.sh build 64 128
-# Prints one markdown table per (N, ranks). SOLVERS="pfmg-pcg smg-pcg" limits the solvers.
+# Prints one markdown table per (N, ranks). SOLVERS="pfmg-pcg smg-pcg" limits the solvers;
+# BENCH_MEDIUM=smooth runs the cumulus without edge noise.
 set -euo pipefail
 BUILD=${1:-build}
 shift || true
