@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "solvers/lpm/gather_kernel.h"
 #include "solvers/lpm/segment_kernel.h"
 #include "src/core/halo.h"
 
@@ -104,8 +105,30 @@ struct Escapes {
     double v[2] = {0.0, 0.0};
 };
 
-void transport_step(const StepGeometry& g, double tu, double tv, const SlotLayout& s, const double* K,
-                    const double* Us, double* phi, const double* A, double* B, Escapes& esc, std::vector<double>& work) {
+// Columns [lo, hi) of a padded row outside which kappa = 0 and Ũ = 0 (lo = hi: all vacuum).
+struct MediumSpan {
+    int lo = 0, hi = 0;
+};
+
+// Advances n rays through one segment each starting at padded (row, col) (segment_kernel.h):
+// only the cells inside the row's medium span need the exponential; the rest are vacuum.
+// (Cells inside the span may be empty too: advance_rays is exact there as well.)
+inline void advance_segment(int n, double* L, int row, int col, int Wu, const MediumSpan* span, const double* K,
+                            const double* Us, double* phi, double len, double w) {
+    const size_t at = static_cast<size_t>(row) * Wu + col;
+    int lo = std::clamp(span[row].lo - col, 0, n), hi = std::clamp(span[row].hi - col, lo, n);
+    // Widen the exponential part to whole vectors (exact: at kappa = 0 both kernels agree).
+    const int wide = (hi - lo + 3) / 4 * 4;
+    if (lo + wide <= n) hi = lo + wide;
+    else lo = std::max(0, (hi = n) - wide);
+    if (lo > 0) advance_rays_vacuum(lo, L, phi + at, w);
+    if (hi > lo) advance_rays(hi - lo, L + lo, K + at + lo, Us + at + lo, phi + at + lo, len, w);
+    if (n > hi) advance_rays_vacuum(n - hi, L + hi, phi + at + hi, w);
+}
+
+void transport_step(const StepGeometry& g, double tu, double tv, const SlotLayout& s, const MediumSpan* span,
+                    const double* K, const double* Us, double* phi, const double* A, double* B, Escapes& esc,
+                    std::vector<double>& work) {
     const int R = s.R;
     const int u_lo = s.per_u ? 0 : (tu > 0 ? -R : 0), u_hi = s.per_u ? s.NuS : (tu < 0 ? s.NuS + R : s.NuS);
     const int v_lo = (s.per_v || s.nb_lo || tv <= 0) ? 0 : -R;
@@ -125,12 +148,16 @@ void transport_step(const StepGeometry& g, double tu, double tv, const SlotLayou
         if (s.per_v) qv2 = qv2 < 0 ? qv2 + s.NvS : (qv2 >= s.NvS ? qv2 - s.NvS : qv2);
         else v_out = (qv2 < 0 && !s.nb_lo) || (qv2 >= s.NvS && !s.nb_hi);
 
-        std::fill(Lrow, Lrow + nU, 0.0);
         if (v_real) {
+            // Rays entering from outside the domain along u (slots beyond [0, NuS)) start dark.
+            const int c_lo = std::max(0, u_lo) - u_lo, c_hi = std::min(s.NuS, u_hi) - u_lo;
             const double* a = A + s.row(qv);
-            std::copy(a + std::max(0, u_lo), a + std::min(s.NuS, u_hi), Lrow + (std::max(0, u_lo) - u_lo));
+            std::fill(Lrow, Lrow + c_lo, 0.0);
+            std::copy(a + u_lo + c_lo, a + u_lo + c_hi, Lrow + c_lo);
+            std::fill(Lrow + c_hi, Lrow + nU, 0.0);
+        } else {
+            std::fill(Lrow, Lrow + nU, 0.0);
         }
-        const int base = (cv + 1) * s.Wu + 1 + cu0;
         for (int ru = 0; ru < R; ++ru) {
             const Pattern& p = g.pat[static_cast<size_t>(rv * R + ru)];
             double* Lr = Lrow;
@@ -138,8 +165,11 @@ void transport_step(const StepGeometry& g, double tu, double tv, const SlotLayou
                 for (int i = 0; i < ncu; ++i) tmp[i] = Lrow[i * R + ru];
                 Lr = tmp;
             }
-            for (int e = 0; e < p.nseg; ++e)
-                advance_rays(ncu, Lr, K + base + p.off[e], Us + base + p.off[e], phi + base + p.off[e], p.len[e], p.w[e]);
+            for (int e = 0; e < p.nseg; ++e) {
+                // p.off = du + dv Wu with |du| <= 1: split it into the row and column shifts.
+                const int dv = floor_div(p.off[e] + 1, s.Wu), du = p.off[e] - dv * s.Wu;
+                advance_segment(ncu, Lr, cv + 1 + dv, 1 + cu0 + du, s.Wu, span, K, Us, phi, p.len[e], p.w[e]);
+            }
             if (R > 1)
                 for (int i = 0; i < ncu; ++i) Lrow[i * R + ru] = tmp[i];
         }
@@ -155,11 +185,10 @@ void transport_step(const StepGeometry& g, double tu, double tv, const SlotLayou
             }
             continue;
         }
-        for (int i = 0; i < nU; ++i) {
-            const int qu2 = u_lo + i + g.dSu;
-            if (qu2 < 0) esc.u[0] += Lrow[i];
-            else if (qu2 >= s.NuS) esc.u[1] += Lrow[i];
-        }
+        // Rays whose next slot u_lo + i + dSu lies outside [0, NuS) leave the domain.
+        const int i_out_lo = std::clamp(-u_lo - g.dSu, 0, nU), i_out_hi = std::clamp(s.NuS - u_lo - g.dSu, i_out_lo, nU);
+        for (int i = 0; i < i_out_lo; ++i) esc.u[0] += Lrow[i];
+        for (int i = i_out_hi; i < nU; ++i) esc.u[1] += Lrow[i];
         if (v_out) {
             for (int qu2 = w_lo; qu2 < w_hi; ++qu2) esc.v[qv2 < 0 ? 0 : 1] += Lrow[qu2 - g.dSu - u_lo];
         } else {
@@ -191,18 +220,24 @@ struct MapFrame {
 // Padded copy of comp c of field f on the map's planes: wrapped across periodic x/y, the
 // field's z ghost where a neighbour owns the cell, 0 outside the domain.
 void fill_padded(const MapFrame& m, const Decomposition& d, const Field<double>& f, int comp, double* out) {
+    const bool per_u = d.periodic(m.ua);  // u is x or y, never z
     for (int la = 0; la < m.layers(); ++la)
-        for (int pv = 0; pv < m.Wv; ++pv)
-            for (int pu = 0; pu < m.Wu; ++pu) {
-                Int3 c = m.cell(la, pv, pu);
-                bool inside = true;
-                for (int ax = 0; ax < 3; ++ax) {
-                    if (c[ax] >= 0 && c[ax] < m.n[ax]) continue;
-                    if (ax != 2 && d.periodic(ax)) c[ax] = (c[ax] + m.n[ax]) % m.n[ax];
-                    else inside = false;
+        for (int pv = 0; pv < m.Wv; ++pv, out += m.Wu) {
+            Int3 c = m.cell(la, pv, 1);  // the row's cell at u = 0
+            int& v = c[m.va];
+            if (v < 0 || v >= m.n[m.va]) {
+                if (m.va == 2 || !d.periodic(m.va)) {
+                    std::fill(out, out + m.Wu, 0.0);
+                    continue;
                 }
-                *out++ = inside ? f(c[0], c[1], c[2], comp) : 0.0;
+                v = (v + m.n[m.va]) % m.n[m.va];
             }
+            const double* row = &f(c[0], c[1], c[2], comp);
+            const std::ptrdiff_t st = f.stride(m.ua);
+            for (int i = 0; i < m.nu; ++i) out[i + 1] = row[i * st];
+            out[0] = per_u ? out[m.nu] : 0.0;
+            out[m.nu + 1] = per_u ? out[1] : 0.0;
+        }
 }
 
 }  // namespace
@@ -271,6 +306,21 @@ void sweep_map(const Decomposition& d, int face, const MapInputs& in, MapAccumul
     std::vector<double> Us(K.size() * static_cast<size_t>(k2));
     fill_padded(m, d, *in.kappa, 0, K.data());
     for (int b = 0; b < k2; ++b) fill_padded(m, d, U, face * k2 + b, Us.data() + static_cast<size_t>(b) * K.size());
+    // Per padded row, the columns that hold every cell with kappa > 0 or Ũ > 0 in any of the
+    // face's coarse bins; outside them rays cross vacuum (advance_rays_vacuum).
+    std::vector<MediumSpan> span(static_cast<size_t>(m.layers()) * m.Wv);
+    for (size_t r = 0; r < span.size(); ++r) {
+        auto empty = [&](int col) {
+            if (K[r * m.Wu + col] != 0.0) return false;
+            for (int b = 0; b < k2; ++b)
+                if (Us[static_cast<size_t>(b) * K.size() + r * m.Wu + col] != 0.0) return false;
+            return true;
+        };
+        int lo = 0, hi = m.Wu;
+        while (lo < hi && empty(lo)) ++lo;
+        while (hi > lo && empty(hi - 1)) --hi;
+        span[r] = {lo, hi};
+    }
     {
         const Box& al = U.allocated();
         for_each_cell(al, [&](int i, int j, int k) {
@@ -310,8 +360,23 @@ void sweep_map(const Decomposition& d, int face, const MapInputs& in, MapAccumul
         }
     }
 
+    // Deposit coefficients per direction (gather_kernel.h): [nd][nc], columns 1, ω̄^n (flux),
+    // P^{n,m}/|Ω^m| (anisotropic scattering).
+    const int nc_fluence = in.flux ? 4 : 1, nc = nc_fluence + (isotropic ? 0 : nm);
+    std::vector<double> C(static_cast<size_t>(nd * nc));
+    for (int l = 0; l < nd; ++l) {
+        double* c = C.data() + static_cast<size_t>(l * nc);
+        *c++ = 1.0;
+        if (in.flux)
+            for (int ax = 0; ax < 3; ++ax) *c++ = ang.mean_direction(face * nd + l)[ax];
+        if (!isotropic)
+            for (int mm = 0; mm < nm; ++mm) *c++ = D[static_cast<size_t>(l * nm + mm)];
+    }
     std::vector<double> phi(plane * static_cast<size_t>(nd), 0.0);
-    std::vector<double> rows(static_cast<size_t>(4 + nm) * static_cast<size_t>(m.nu));
+    std::vector<double> rows(static_cast<size_t>(nc) * static_cast<size_t>(m.nu));
+    const double* tot = rows.data();
+    const double* Fr = tot + (in.flux ? m.nu : 0);
+    const double* Sr = tot + (in.flux ? 4 : 1) * m.nu;
     // Folds periodic pads, then deposits the step's path integrals of directions [l0, l1) in
     // local layer la: fluence, flux and the scattered light into every coarse bin (eq. 5).
     auto deposit = [&](int la, int l0, int l1) {
@@ -343,27 +408,18 @@ void sweep_map(const Decomposition& d, int face, const MapInputs& in, MapAccumul
                 for (int l = l0; l < l1; ++l) std::fill_n(phi.data() + plane * static_cast<size_t>(l) + c0, nu, 0.0);
                 continue;
             }
-            // Row sums over the directions: fluence, flux, and Σ_n P^{n,m}/|Ω^m| φ_n per bin m.
-            std::fill(rows.begin(), rows.end(), 0.0);
-            double* tot = rows.data();
-            double* Fr = tot + nu;
-            double* Sr = Fr + 3 * nu;
-            for (int l = l0; l < l1; ++l) {
-                double* ph = phi.data() + plane * static_cast<size_t>(l) + c0;
-                for (size_t i = 0; i < nu; ++i) tot[i] += ph[i];
-                if (in.flux) {
-                    const Vec3& w = ang.mean_direction(face * nd + l);
-                    for (int ax = 0; ax < 3; ++ax)
-                        for (size_t i = 0; i < nu; ++i) Fr[ax * nu + i] += w[ax] * ph[i];
-                }
-                if (!isotropic)
-                    for (int mm = 0; mm < nm; ++mm) {
-                        const double dlm = D[static_cast<size_t>(l * nm + mm)];
-                        double* S = Sr + static_cast<size_t>(mm) * nu;
-                        for (size_t i = 0; i < nu; ++i) S[i] += dlm * ph[i];
-                    }
-                std::fill_n(ph, nu, 0.0);
-            }
+            // Row sums over the directions: fluence, flux, and Σ_n P^{n,m}/|Ω^m| φ_n per bin m,
+            // the last only inside the row's medium span (nothing scatters in vacuum).
+            const MediumSpan& sp = span[static_cast<size_t>(la) * m.Wv + pv];
+            const int i_lo = std::clamp(sp.lo - 1, 0, m.nu), i_hi = std::clamp(sp.hi - 1, i_lo, m.nu);
+            auto gather = [&](int i0, int i1, int ncols) {
+                if (i1 > i0)
+                    gather_directions(i1 - i0, l1 - l0, phi.data() + plane * static_cast<size_t>(l0) + c0 + i0, plane,
+                                      C.data() + static_cast<size_t>(l0) * nc, nc, ncols, rows.data() + i0, nu);
+            };
+            gather(0, i_lo, nc_fluence);
+            gather(i_lo, i_hi, nc);
+            gather(i_hi, m.nu, nc_fluence);
             // Row start in the fields and their strides along u.
             const Int3 g = m.cell(la, pv, 1);
             double* fl = &(*acc.fluence)(g[0], g[1], g[2]);
@@ -397,7 +453,7 @@ void sweep_map(const Decomposition& d, int face, const MapInputs& in, MapAccumul
         const int mb = ang.coarse_of(face * nd + l) - face * k2;
         Escapes esc;
         transport_step(geo, tu[static_cast<size_t>(l)], tv[static_cast<size_t>(l)], sl,
-                       K.data() + plane * static_cast<size_t>(la),
+                       span.data() + static_cast<size_t>(la) * m.Wv, K.data() + plane * static_cast<size_t>(la),
                        Us.data() + K.size() * static_cast<size_t>(mb) + plane * static_cast<size_t>(la),
                        phi.data() + plane * static_cast<size_t>(l), A, B, esc, work);
         const double e = ef[static_cast<size_t>(l)];
