@@ -91,7 +91,7 @@ std::string key_of_validation_message(const std::string& msg, const Scene& scene
         }
         return match < 0 ? std::string("optics") : fmt::format("optics[{}].{}", match, prop);
     }
-    if (std::regex_search(msg, m, std::regex(R"([a-z_]+(\.[a-z_]+)+)"))) {
+    if (std::regex_search(msg, m, std::regex(R"([a-z_]+(\[\d+\])?(\.[a-z_]+)+)"))) {
         std::string key = m[0];
         if (key == "grid.nx" || key == "grid.ny" || key == "grid.nz") key = "grid.n";
         return key;
@@ -221,6 +221,19 @@ void read_sun(const TableReader& t, SunSpec& s) {
     if (std::isfinite(len) && len > 0 && std::abs(len - 1.0) > 1e-12) s.direction = s.direction / len;
 }
 
+// [[sources]]: boxes of volume emission (lo, hi in the grid's unit; power per band, W/m³).
+void read_sources(const TableReader& root, std::vector<SourceSpec>& sources) {
+    sources.clear();
+    for (const TableReader& t : root.tables("sources", {"lo", "hi", "power"})) {
+        SourceSpec src;
+        if (!t.has("lo") || !t.has("hi")) t.fail(t.has("lo") ? "hi" : "lo", "is required (position in the grid's unit)");
+        t.read("lo", src.lo);
+        t.read("hi", src.hi);
+        t.read_per_band("power", src.power);
+        sources.push_back(src);
+    }
+}
+
 void read_camera(const TableReader& t, CameraSpec& c) {
     t.read("position", c.position);
     t.read("look_at", c.look_at);
@@ -278,6 +291,17 @@ void read_dom(const TableReader& t, DomOptions& o) {
     t.read("tolerance", o.tolerance);
     t.read("max_iterations", o.max_iterations);
     t.read("tile_rows", o.tile_rows);
+    t.read("octant_overlap", o.octant_overlap);
+    if (t.has("reflective")) {
+        const toml::value& v = t.at("reflective");
+        if (!v.is_array()) t.fail("reflective", "must be an array of face names, e.g. [\"z-\"]");
+        o.reflective.clear();
+        for (const toml::value& f : v.as_array()) {
+            if (!f.is_string()) t.fail("reflective", "must be an array of face names, e.g. [\"z-\"]");
+            o.reflective.push_back(f.as_string().str);
+        }
+    }
+    t.read("sky", o.sky);
 }
 
 void read_lpm(const TableReader& t, LpmOptions& o) {
@@ -306,7 +330,8 @@ void read_model(const TableReader& t, ModelSpec& m) {
                                          "flux_limiter", "limiter_iterations", "limiter_tolerance"}),
                    m.diffusion);
     read_dom(t.table("dom", {"quadrature", "order", "polar", "azimuthal", "legendre_order", "delta_m",
-                             "scheme", "iteration", "tolerance", "max_iterations", "tile_rows"}),
+                             "scheme", "iteration", "tolerance", "max_iterations", "tile_rows",
+                             "octant_overlap", "reflective", "sky"}),
              m.dom);
     read_lpm(t.table("lpm", {"p", "refinement", "k", "solution_bins", "iterations", "epsilon", "tail"}), m.lpm);
     read_psf(t.table("psf", {"levels", "step_growth"}), m.psf);
@@ -316,7 +341,7 @@ Scene convert(const toml::value& tree, const std::string& source, const fs::path
     Scene s;
     s.source = source;
     const TableReader root(source, tree, "",
-                           {"title", "grid", "medium", "optics", "sun", "sky", "light", "camera",
+                           {"title", "grid", "medium", "optics", "sun", "sky", "sources", "light", "camera",
                             "background", "render", "model", "output"});
     root.read("title", s.title);
     read_grid(root.table("grid", {"n", "cell_size", "unit", "unit_scale", "process_grid", "periodic"}),
@@ -330,6 +355,7 @@ Scene convert(const toml::value& tree, const std::string& source, const fs::path
     const TableReader sky = root.table("sky", {"radiance", "directions"});
     sky.read_per_band("radiance", s.sky.radiance);
     sky.read("directions", s.sky.directions);
+    read_sources(root, s.sources);
     const TableReader light = root.table("light", {"method"});
     s.light.method = static_cast<LightSpec::Method>(
         light.read_choice("method", kLightMethods, static_cast<int>(s.light.method)));

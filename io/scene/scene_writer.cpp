@@ -53,6 +53,9 @@ void write_dom(std::ostream& o, const DomOptions& d) {
     o << "tolerance = " << num(d.tolerance) << "\n";
     o << "max_iterations = " << d.max_iterations << "\n";
     o << "tile_rows = " << d.tile_rows << "\n";
+    o << "octant_overlap = " << d.octant_overlap << "\n";
+    o << "reflective = " << list(d.reflective, str) << "\n";
+    o << "sky = " << str(d.sky) << "\n";
 }
 
 void write_lpm(std::ostream& o, const LpmOptions& l) {
@@ -134,6 +137,13 @@ std::string scene_to_toml(const Scene& s) {
     o << "\n[sky]\n";
     o << "radiance = " << per_band(s.sky.radiance) << "\n";
     o << "directions = " << s.sky.directions << "\n";
+
+    for (const SourceSpec& src : s.sources) {
+        o << "\n[[sources]]\n";
+        o << "lo = " << nums(src.lo) << "\n";
+        o << "hi = " << nums(src.hi) << "\n";
+        o << "power = " << per_band(src.power) << "\n";
+    }
 
     o << "\n[light]\n";
     o << "method = " << str(to_string(s.light.method)) << "\n";

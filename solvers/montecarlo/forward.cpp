@@ -8,6 +8,7 @@
 #include <numeric>
 #include <type_traits>
 
+#include "solvers/montecarlo/emitter.h"
 #include "solvers/montecarlo/empty_space.h"
 #include "solvers/montecarlo/grid_walk.h"
 #include "solvers/montecarlo/photon.h"
@@ -86,6 +87,13 @@ std::vector<std::int64_t> photons_per_light(const std::vector<double>& power, st
 ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                             const std::vector<DirectionalLight>& lights,
                             const MonteCarloOptions& opt, const ForwardSettings& settings) {
+    return trace_forward(d, medium, lights, {}, opt, settings);
+}
+
+ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
+                            const std::vector<DirectionalLight>& lights,
+                            const std::vector<VolumeSource>& sources,
+                            const MonteCarloOptions& opt, const ForwardSettings& settings) {
     opt.validate();
     const double t_start = wall_time();
     const Int3 n = d.global().hi;
@@ -100,9 +108,13 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
 
     // Memory of the replicated arrays, per rank: density (gathered + global), kappa and the
     // empty-space distance per group,
-    // per band the batch tally and its running sum and sum of squares, and the reduce buffer.
+    // per band the batch tally and its running sum and sum of squares, and the reduce buffer;
+    // the emitting-cell lists of the volume sources (at most 4 bytes per covered cell).
+    double source_cells = 0.0;
+    for (const VolumeSource& src : sources) source_cells += static_cast<double>(src.cells.cells());
     const double bytes = static_cast<double>(cells) *
-                         (16.0 + 5.0 * static_cast<double>(groups.size()) + 8.0 * nb * (nq / 2) * 3 + 8.0 * nb * nq + 12.0);
+                         (16.0 + 5.0 * static_cast<double>(groups.size()) + 8.0 * nb * (nq / 2) * 3 + 8.0 * nb * nq + 12.0) +
+                         4.0 * source_cells;
     ForwardResult res;
     res.replicated_gb = bytes / 1e9;
     if (res.replicated_gb > opt.max_replicated_memory_gb)
@@ -151,8 +163,19 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
         for (int b = 0; b < nb; ++b) p += L.E0[static_cast<size_t>(b)] * area.back();
         power.push_back(p);
     }
+    // Volume sources: the emitting cells of each, then its power, after the lights' (one
+    // budget, photons_per_light).
+    std::vector<VolumeEmitter> emitters;
+    for (const VolumeSource& src : sources) {
+        emitters.emplace_back(src.power, src.cells, [&](int i, int j, int k) {
+            return rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i];
+        }, h);
+        double p = 0.0;
+        for (int b = 0; b < nb; ++b) p += emitters.back().total_power(b);
+        power.push_back(p);
+    }
     const std::vector<std::int64_t> n_light = photons_per_light(power, opt.photons, B);
-    const size_t nl = lights.size();
+    const size_t nl = lights.size(), nt = nl + emitters.size();  // light terms, all terms
 
     // Per-rank accumulators over the global grid: [cell][band] sum and sum of squares of the
     // batch estimates (and of the reduced tally).
@@ -195,8 +218,9 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
             touched.clear();
             const GridView grid = voxels[gi].view(periodic);
             const PhotonOptics po{G.optics.albedo, G.optics.g, opt.roulette_weight};
-            for (size_t l = 0; l < nl; ++l) {
+            for (size_t l = 0; l < nt; ++l) {
                 if (n_light[l] == 0) continue;
+                const VolumeEmitter* emitter = l < nl ? nullptr : &emitters[l - nl];
                 const std::int64_t lo = batch * n_light[l] / B, hi = (batch + 1) * n_light[l] / B;
                 if (hi <= lo) continue;
                 // Photon power per band (W) in this batch's estimate, and the fluence scale
@@ -204,10 +228,15 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                 double P[64], scale[64];
                 int strongest = 0;
                 for (int q = 0; q < nbg; ++q) {
-                    P[q] = lights[l].E0[static_cast<size_t>(G.bands[static_cast<size_t>(q)])] * area[l] /
+                    const int band = G.bands[static_cast<size_t>(q)];
+                    P[q] = (emitter ? emitter->total_power(band) : lights[l].E0[static_cast<size_t>(band)] * area[l]) /
                            static_cast<double>(hi - lo);
                     scale[q] = P[q] / (h * h);
                     if (scale[q] > scale[strongest]) strongest = q;
+                }
+                if (!(scale[strongest] > 0)) {  // no power in this group's bands (nothing to tally)
+                    if (gi == 0) my_photons += hi - lo;
+                    continue;
                 }
                 PathTally pt;
                 double* t = tally.data();
@@ -224,6 +253,11 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                     for (std::int64_t p = lo; p < hi; ++p) {
                         PathRng rng(opt.seed, static_cast<std::uint32_t>(l), static_cast<std::uint64_t>(p));
                         PathState s;
+                        if (emitter) {
+                            emitter->sample(rng, s, box_lo);
+                            trace_emitted_photon(grid, po, rng, s, pt, diffuse);
+                            continue;
+                        }
                         s.d = lights[l].w;
                         entry[l].sample(rng, s);
                         if (settings.tally_reduced) {
@@ -243,9 +277,13 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                 my_collisions += pt.collisions;
                 for (int q = 0; q < nbg; ++q) {
                     Counters& c = batch_counters[static_cast<size_t>(batch) * nb + G.bands[static_cast<size_t>(q)]];
-                    const double E0 = lights[l].E0[static_cast<size_t>(G.bands[static_cast<size_t>(q)])];
-                    c[incident] += E0 * domain_area[l];
-                    c[escaped_direct] += E0 * (domain_area[l] - area[l]);  // rays missing the box
+                    if (emitter) {
+                        c[emitted] += emitter->total_power(G.bands[static_cast<size_t>(q)]);
+                    } else {
+                        const double E0 = lights[l].E0[static_cast<size_t>(G.bands[static_cast<size_t>(q)])];
+                        c[incident] += E0 * domain_area[l];
+                        c[escaped_direct] += E0 * (domain_area[l] - area[l]);  // rays missing the box
+                    }
                     c[absorbed] += P[q] * pt.absorbed;
                     c[escaped_direct] += P[q] * pt.escaped_direct;
                     for (int f = 0; f < 6; ++f) c[escaped_xlo + f] += P[q] * pt.escaped_diffuse[f];

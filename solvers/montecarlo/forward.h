@@ -1,4 +1,5 @@
-// Forward light tracing driver (issue 3): photons from every light term, batches of photon
+// Forward light tracing driver (issue 3): photons from every light term and every volume
+// source (emitter.h, src/scene/emission.h), batches of photon
 // index ranges spread over the ranks, per-cell batch-means statistics, energy bookkeeping.
 //
 // Parallel layout: the density grid is replicated on every rank (MPI_Allgatherv of the owned
@@ -12,6 +13,10 @@
 //
 // Photons start only on the live pixels of the medium's bounding box (photon.h, EntrySampler::
 // restrict_to); the rest of the domain's projected area is booked as direct escape.
+//
+// Light terms and volume sources share the photon budget in proportion to their power summed
+// over bands (photons_per_light over lights then sources; a source's power is power[b] times
+// its emitting volume); source s draws from the Philox stream number lights.size() + s.
 //
 // Each batch is a full estimate (its photons carry power E0 A_projected / n_batch); the result
 // is the mean over the completed batches and the standard error is that of the batch means.
@@ -27,6 +32,7 @@
 #include "src/core/field.h"
 #include "src/model/options.h"
 #include "src/physics/lights.h"
+#include "src/scene/emission.h"
 #include "src/scene/medium.h"
 
 namespace nimbus::mc {
@@ -40,6 +46,8 @@ enum Counter : int {
     escaped_xlo, escaped_xhi, escaped_ylo, escaped_yhi, escaped_zlo, escaped_zhi,  // scattered light out
     roulette_net,     // weight created minus destroyed by Russian roulette (zero on average)
     diffuse_volume,   // ∫ fluence_diffuse dV (W m): the quantity of the target error
+    emitted,          // power of the volume sources (W); balance: incident + emitted =
+                      // absorbed + escaped_direct + Σ escaped_faces (+ roulette_net, zero mean)
     ncounters
 };
 using Counters = std::array<double, ncounters>;
@@ -76,6 +84,12 @@ struct ForwardResult {
 // carry no photons; with none left the result is zero with stop_reason "no light".
 ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                             const std::vector<DirectionalLight>& lights,
+                            const MonteCarloOptions& opt, const ForwardSettings& settings = {});
+// The same with volume sources (emission.h; cells without density do not emit). Emitted
+// photons escaping uncollided count in escaped_xlo..zhi, not escaped_direct.
+ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
+                            const std::vector<DirectionalLight>& lights,
+                            const std::vector<VolumeSource>& sources,
                             const MonteCarloOptions& opt, const ForwardSettings& settings = {});
 
 

@@ -4,6 +4,7 @@
 #include "solvers/montecarlo/path_tracer.h"
 #include "src/core/log.h"
 #include "src/core/report.h"
+#include "src/scene/emission.h"
 
 namespace nimbus {
 
@@ -31,7 +32,10 @@ public:
         mc::ForwardResult r;
         {
             ScopedTimer timer(ctx.report, "montecarlo/trace");
-            r = mc::trace_forward(ctx.decomp, ctx.medium, ctx.light.lights, opt_);
+            const std::vector<VolumeSource> sources = volume_sources(ctx.scene);
+            has_sources_ = !sources.empty();
+            check_volume_sources(sources, ctx.medium.rho, ctx.decomp);
+            r = mc::trace_forward(ctx.decomp, ctx.medium, ctx.light.lights, sources, opt_);
         }
         out.fluence = std::move(r.fluence);
         out.fluence_stderr = std::move(r.fluence_stderr);
@@ -50,6 +54,7 @@ public:
             for (int f = 0; f < 6; ++f) escaped += c[mc::escaped_xlo + f];
             energy.push_back({{"band", ctx.medium.bands[b].name},
                               {"incident_W", c[mc::incident]},
+                              {"emitted_W", c[mc::emitted]},
                               {"absorbed_W", c[mc::absorbed]},
                               {"escaped_W", escaped},
                               {"reflected_diffuse_W", c[mc::escaped_zhi]},
@@ -80,7 +85,9 @@ public:
                   paths_per_s, coll_per_s, coll_per_s_all, r.rel_error, r.replicated_gb);
     }
 
-    bool renders_image() const override { return opt_.image; }
+    // The path tracer knows only the light terms: with volume sources the pipeline's ray
+    // caster renders the image from the traced fluence instead (decided after solve()).
+    bool renders_image() const override { return opt_.image && !has_sources_; }
 
     Image render(const SolveContext& ctx) override {
         ScopedTimer timer(ctx.report, "montecarlo/render");
@@ -89,6 +96,7 @@ public:
 
 private:
     MonteCarloOptions opt_;
+    bool has_sources_ = false;
 };
 
 }  // namespace

@@ -14,6 +14,8 @@
 //   collision:   absorbed += w (1 - a);  w *= a           (implicit capture)
 //   roulette:    if w < w_min: survive with probability 1/2 and w *= 2, else end
 //   scattering:  mu ~ HG(g) (hg_sample_mu), phi uniform; d = turn_direction(d, mu, cos phi, sin phi)
+//   emitted:     a volume-source photon (trace_emitted_photon) starts with w = 1 inside the
+//                medium and is tallied from its first segment (emitted light is diffuse)
 //   estimator:   fluence_cell += w P len / V for every segment after the first scattering
 //                (the unscattered beam E0 T is the reduced fluence: tallied only on request;
 //                forced: as its expected value along the entry ray, uncollided_track)
@@ -256,6 +258,41 @@ inline double uncollided_track(double tau_in, double kappa, double len) {
     return std::exp(-tau_in) * (-std::expm1(-kappa * len)) / kappa;
 }
 
+// Continues a path of weight w from its collision at s until it leaves the domain or ends:
+// implicit capture, roulette, HG scattering, the next free flight (tallied as diffuse).
+template <class TallyDiffuse>
+inline void scatter_path(const GridView& grid, const PhotonOptics& o, PathRng& rng, PathState& s,
+                         PathTally& out, double w, TallyDiffuse&& tally_diffuse) {
+    for (;;) {
+        ++out.collisions;
+        out.absorbed += w * (1.0 - o.albedo);
+        w *= o.albedo;
+        if (w <= 0.0) return;
+        if (w < o.roulette_weight) {
+            if (rng.uniform() < 0.5) {
+                out.roulette_net += w;
+                w *= 2.0;
+            } else {
+                out.roulette_net -= w;
+                return;
+            }
+        }
+        const double mu = hg_sample_mu(o.g, rng.uniform());
+        double cos_phi, sin_phi;
+        sincos_2pi(rng.uniform(), cos_phi, sin_phi);  // phi = 2π xi
+        s.d = turn_direction(s.d, mu, cos_phi, sin_phi);
+        const double tau = -std::log(rng.uniform());
+        const int face = walk_optical_depth(grid, s, tau, [&](std::int64_t idx, double len) {
+            tally_diffuse(idx, w * len);
+            out.diffuse_track += w * len;
+        });
+        if (face >= 0) {
+            out.escaped_diffuse[face] += w;
+            return;
+        }
+    }
+}
+
 // Traces one path from state s (already at its entry point). tally_diffuse(idx, w_len) is
 // called per segment after the first scattering; tally_reduced(idx, track) per uncollided
 // segment if tally_reduced_on: the analog track length before the first collision, or with
@@ -295,34 +332,25 @@ inline void trace_photon(const GridView& grid, const PhotonOptics& o, PathRng& r
             return;
         }
     }
-    for (;;) {
-        ++out.collisions;
-        out.absorbed += w * (1.0 - o.albedo);
-        w *= o.albedo;
-        if (w <= 0.0) return;
-        if (w < o.roulette_weight) {
-            if (rng.uniform() < 0.5) {
-                out.roulette_net += w;
-                w *= 2.0;
-            } else {
-                out.roulette_net -= w;
-                return;
-            }
-        }
-        const double mu = hg_sample_mu(o.g, rng.uniform());
-        double cos_phi, sin_phi;
-        sincos_2pi(rng.uniform(), cos_phi, sin_phi);  // phi = 2π xi
-        s.d = turn_direction(s.d, mu, cos_phi, sin_phi);
-        const double tau = -std::log(rng.uniform());
-        const int face = walk_optical_depth(grid, s, tau, [&](std::int64_t idx, double len) {
-            tally_diffuse(idx, w * len);
-            out.diffuse_track += w * len;
-        });
-        if (face >= 0) {
-            out.escaped_diffuse[face] += w;
-            return;
-        }
+    scatter_path(grid, o, rng, s, out, w, tally_diffuse);
+}
+
+// A photon of a volume source (emitter.h): starts at s (inside an emitting cell, direction
+// s.d) with weight 1. All emitted light is diffuse light (DESIGN §1), so its track is tallied
+// from the start; an emitted photon that leaves uncollided is booked in escaped_diffuse.
+template <class TallyDiffuse>
+inline void trace_emitted_photon(const GridView& grid, const PhotonOptics& o, PathRng& rng, PathState& s,
+                                 PathTally& out, TallyDiffuse&& tally_diffuse) {
+    const double tau = -std::log(rng.uniform());
+    const int face = walk_optical_depth(grid, s, tau, [&](std::int64_t idx, double len) {
+        tally_diffuse(idx, len);
+        out.diffuse_track += len;
+    });
+    if (face >= 0) {
+        out.escaped_diffuse[face] += 1.0;
+        return;
     }
+    scatter_path(grid, o, rng, s, out, 1.0, tally_diffuse);
 }
 
 }  // namespace nimbus::mc

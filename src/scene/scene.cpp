@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "src/core/error.h"
+#include "src/scene/emission.h"
 
 namespace nimbus {
 namespace {
@@ -19,6 +20,32 @@ void require_bands(const std::vector<double>& v, int nb, const char* key) {
                         v.size(), nb, nb));
     for (double x : v)
         require(std::isfinite(x) && x >= 0.0, fmt::format("{} = {} must be finite and >= 0", key, x));
+}
+
+// [[sources]]: boxes, powers, and whether the model supports volume emission.
+void validate_sources(const Scene& scene) {
+    const auto& sources = scene.sources;
+    const GridSpec& grid = scene.grid;
+    for (size_t s = 0; s < sources.size(); ++s) {
+        const SourceSpec& src = sources[s];
+        const std::string key = fmt::format("sources[{}]", s);
+        for (int d = 0; d < 3; ++d) {
+            const auto a = static_cast<size_t>(d);
+            require(std::isfinite(src.lo[a]) && std::isfinite(src.hi[a]) && src.lo[a] < src.hi[a],
+                    fmt::format("{}.lo must be < {}.hi along {} (found {} and {})", key, key, "xyz"[d],
+                                src.lo[a], src.hi[a]));
+        }
+        require_bands(src.power, scene.nbands(), (key + ".power").c_str());
+        require(!source_cells(src, grid).empty(),
+                fmt::format("{}.lo/hi cover no cell centre of the grid (domain [0, {}] x [0, {}] x [0, {}] in {})",
+                            key, grid.n[0] * grid.cell_size, grid.n[1] * grid.cell_size,
+                            grid.n[2] * grid.cell_size, grid.unit));
+    }
+    if (!sources.empty())
+        require(scene.model.name == "dom" || scene.model.name == "montecarlo",
+                fmt::format("model.name: model {} does not support [[sources]] (volume emission); "
+                            "use dom or montecarlo",
+                            scene.model.name));
 }
 
 }  // namespace
@@ -48,6 +75,7 @@ void Scene::validate() const {
         require_bands(sky.radiance, nbands(), "sky.radiance");
         require(sky.directions >= 1 && sky.directions <= 4096, "sky.directions must be in [1, 4096]");
     }
+    validate_sources(*this);
     require(camera.width > 0 && camera.height > 0 && camera.width <= 16384 && camera.height <= 16384,
             "camera.resolution must be between 1 and 16384 pixels per side");
     require(camera.fov_deg > 0 && camera.fov_deg < 180, "camera.fov must be in (0, 180) degrees");

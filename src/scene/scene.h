@@ -82,6 +82,21 @@ struct LightSpec {
     Method method = Method::sweep;
 };
 
+// One [[sources]] table: an axis-aligned box of isotropic volume emission. lo/hi are positions
+// in the scene's length unit (GridSpec::unit) measured from the domain's low corner, like
+// cell_size; a cell emits when its centre c satisfies lo <= c < hi on every axis (half-open,
+// so boxes that share a face never both cover a cell) AND the cell has density > 0 (emission
+// belongs to the medium; the empty cells of a covered box emit nothing). power is the emitted
+// power per unit volume into all directions (W/m³), per band or one value for every band; the
+// radiance source is q = power / 4π (W/m³/sr). Emitted light, collided or not, is part of
+// fluence_diffuse (DESIGN §1). Supported by the dom and montecarlo models (validate() rejects
+// a scene with sources for any other model).
+struct SourceSpec {
+    std::array<double, 3> lo{0.0, 0.0, 0.0};
+    std::array<double, 3> hi{0.0, 0.0, 0.0};
+    std::vector<double> power{1.0};
+};
+
 struct CameraSpec {
     Vec3 position{0.5, -1.6, 0.45};   // grid fractions of the domain extent (unit: domain)
     Vec3 look_at{0.5, 0.5, 0.45};
@@ -141,6 +156,7 @@ struct Scene {
     std::vector<BandOptics> bands{BandOptics{}};
     SunSpec sun;
     SkySpec sky;
+    std::vector<SourceSpec> sources;  // [[sources]]: volume emission boxes
     LightSpec light;
     CameraSpec camera;
     BackgroundSpec background;

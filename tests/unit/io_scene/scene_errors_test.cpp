@@ -115,6 +115,30 @@ TEST(SceneErrors, NegativeDensityScale) {
     expect_error(edit("density = 1.0", "density = -2.0"), "density = -2.0", {"medium.density = -2", ">= 0"});
 }
 
+TEST(SceneErrors, Sources) {
+    const std::string ok = "[[sources]]\nlo = [1, 1, 1]\nhi = [3, 3, 3]\npower = 2.0\n";
+    // Only dom and montecarlo model volume emission; the others refuse the scene.
+    for (const char* model : {"single", "lpm", "psf", "diffusion"})
+        expect_error(edit("name = \"single\"", std::string("name = \"") + model + "\"\n" + ok),
+                     std::string("name = \"") + model, {"model " + std::string(model) + " does not support [[sources]]",
+                                                          "use dom or montecarlo"});
+    for (const char* model : {"dom", "montecarlo"})
+        EXPECT_NO_THROW(load_scene_string(edit("name = \"single\"", std::string("name = \"") + model + "\"\n" + ok), "ok.toml"));
+    const std::string dom = "name = \"dom\"\n";
+    expect_error(edit("name = \"single\"", dom + "[[sources]]\nlo = [1, 4, 1]\nhi = [3, 3, 3]"), "lo = [1, 4, 1]",
+                 {"sources[0].lo must be < sources[0].hi along y"});
+    expect_error(edit("name = \"single\"", dom + ok + "[[sources]]\nlo = [0, 0, 0]\nhi = [1, 1, 1]\npower = -1"),
+                 "power = -1", {"sources[1].power = -1 must be finite and >= 0"});
+    expect_error(edit("name = \"single\"", dom + "[[sources]]\nlo = [0, 0, 0]\nhi = [1, 1, 1]\npower = [1, 2]"),
+                 "power = [1, 2]", {"sources[0].power has 2 values but the scene has 1 band(s)"});
+    expect_error(edit("name = \"single\"", dom + "[[sources]]\nlo = [0.6, 0, 0]\nhi = [1.4, 1, 1]"), "lo = [0.6",
+                 {"sources[0].lo/hi cover no cell centre"});
+    expect_error(edit("name = \"single\"", dom + "[[sources]]\nlo = [0, 0, 0]"), "[[sources]]",
+                 {"sources[0].hi is required"});
+    expect_error(edit("name = \"single\"", dom + "[[sources]]\nlo = [0, 0, 0]\nhi = [1, 1, 1]\npowr = 1"), "powr",
+                 {"sources[0].powr: unknown key", "did you mean 'power'?"});
+}
+
 TEST(SceneErrors, WrongType) {
     expect_error(edit("n = [8, 8, 8]", "n = \"big\""), "n = \"big\"",
                  {"grid.n must be an array of 3 integers", "found string \"big\""});

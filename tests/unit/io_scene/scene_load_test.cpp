@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "io/scene/scene_toml.h"
+#include "src/scene/emission.h"
 #include "src/scene/medium.h"
 #include "tests/support/mpi_test.h"
 #include "tests/unit/io_scene/temp_dir.h"
@@ -57,6 +58,12 @@ void expect_same_scene(const Scene& a, const Scene& b) {
     EXPECT_EQ(a.sun.irradiance, b.sun.irradiance);
     EXPECT_EQ(a.sky.radiance, b.sky.radiance);
     EXPECT_EQ(a.sky.directions, b.sky.directions);
+    ASSERT_EQ(a.sources.size(), b.sources.size());
+    for (size_t i = 0; i < a.sources.size(); ++i) {
+        EXPECT_EQ(a.sources[i].lo, b.sources[i].lo);
+        EXPECT_EQ(a.sources[i].hi, b.sources[i].hi);
+        EXPECT_EQ(a.sources[i].power, b.sources[i].power);
+    }
     for (int d = 0; d < 3; ++d) {
         EXPECT_EQ(a.camera.position[d], b.camera.position[d]);
         EXPECT_EQ(a.camera.look_at[d], b.camera.look_at[d]);
@@ -160,7 +167,7 @@ TEST_P(ExampleScene, LoadsValidatesAndRoundTrips) {
 
 INSTANTIATE_TEST_SUITE_P(Scenes, ExampleScene,
                          ::testing::Values("default.toml", "smoke.toml", "dense_cube.toml",
-                                           "sphere_ground.toml", "slab.toml"),
+                                           "sphere_ground.toml", "slab.toml", "duct.toml"),
                          [](const auto& p) {
                              return p.param.substr(0, p.param.find('.'));
                          });
@@ -243,6 +250,7 @@ TEST(SceneLoad, EveryFieldRoundTrips) {
     s.sun.irradiance = {3.0, 4.0};
     s.sky.radiance = {0.5};
     s.sky.directions = 32;
+    s.sources = {{{0.3, 0.6, 0.9}, {1.2, 2.7, 3.3}, {1.0 / 3.0, 2.0}}, {{0.0, 0.0, 0.0}, {2.1, 2.7, 3.3}, {5e-7}}};
     s.camera.position = {-10, 20, 30};
     s.camera.look_at = {1, 2, 3};
     s.camera.up = {0, 1, 0};
@@ -264,6 +272,25 @@ TEST(SceneLoad, EveryFieldRoundTrips) {
     s.model.diffusion = {"smg-pcg", 1e-10, 999, 5};
     s.output = {"results/x", "run_7", false, false};
     ASSERT_NO_THROW(s.validate());
+    expect_round_trip(s);
+}
+
+TEST(SceneLoad, SourcesCoverTheCellsWhoseCentresAreInside) {
+    const std::string text = "[grid]\nn = [10, 8, 6]\ncell_size = 2\nunit = \"km\"\n[[optics]]\n"
+                             "[model]\nname = \"dom\"\n"
+                             "[[sources]]\nlo = [2, 0, 3]\nhi = [7, 16, 5.0001]\npower = 2.5\n"
+                             "[[sources]]\nlo = [-5, -5, -5]\nhi = [2, 100, 100]\n";
+    const Scene s = load_scene_string(text, "sources.toml");
+    ASSERT_EQ(s.sources.size(), 2u);
+    EXPECT_EQ(s.sources[0].power, std::vector<double>{2.5});
+    EXPECT_EQ(s.sources[1].power, std::vector<double>{1.0});  // default
+    // Centres at 1, 3, 5, ... km: x in [2, 7) -> cells 1..2 (3, 5); z in [3, 5.0001) -> cell 1
+    // (centre 3) and 2 (centre 5); y covers the whole grid; a box past the domain is clipped.
+    EXPECT_EQ(source_cells(s.sources[0], s.grid), (Box{{1, 0, 1}, {3, 8, 3}}));
+    EXPECT_EQ(source_cells(s.sources[1], s.grid), (Box{{0, 0, 0}, {1, 8, 6}}));
+    // Half-open: a face on a cell centre belongs to the box above it.
+    SourceSpec edge{{1.0, 1.0, 1.0}, {3.0, 3.0, 3.0}, {1.0}};
+    EXPECT_EQ(source_cells(edge, s.grid), (Box{{0, 0, 0}, {1, 1, 1}}));
     expect_round_trip(s);
 }
 
