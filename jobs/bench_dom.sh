@@ -2,9 +2,18 @@
 # Discrete-ordinates sweep benchmark (jobs/bench/bench_dom.cpp): Kripke grind time for
 # 32³-96³, S4 (the model default), S8, S16 and the 96 cube-face directions, 1 band, on 1 and 2 ranks.
 #   jobs/bench_dom.sh [build-dir] [N ...]          e.g. jobs/bench_dom.sh build 32 64
-# QUADS="S4 S8 S16 cube96" ITERATIONS=5 LEGENDRE=4 TILE_ROWS=8 override the defaults.
-# Kripke v1.2.7 on this machine kind: about 10.5 ns (32³ and 64³, 96 directions, 1 group, 1 rank).
-# KBA 2-rank efficiency = time/iteration on 1 rank / (2 x time/iteration on 2 ranks).
+# Environment overrides (defaults in brackets):
+#   QUADS ["S4 S8 S16 cube96"]  ITERATIONS [5]  LEGENDRE [4: 25 moments, Kripke's default]
+#   TILE_ROWS ["8"]  rows per KBA tile; a large value (e.g. 1000) = one tile per rank, where the
+#                    pipeline fill matters most
+#   OVERLAPS ["1 2 8"] octants swept at once ([model.dom] octant_overlap)
+#   NIMBUS_DOM_PORTABLE=1 forces the portable moment kernels (for side-by-side ratios).
+# Kripke v1.2.7 on this machine kind: about 10.5 ns (32³ and 64³, 96 directions, 1 group, 1 rank,
+# Legendre order 4). Columns: grind = whole iteration / (zones x directions x iterations);
+# sweep = the engine (transport kernel + pipeline waits); moments = moments -> directions and
+# back (incl. fluence and flux); pipeline eff. = 1 - wait / sweep time (min over ranks);
+# 2-rank eff. = time per iteration on 1 rank / (2 x time per iteration on 2 ranks).
+# Example (the issue's comparison): QUADS=cube96 OVERLAPS="1 2" bash jobs/bench_dom.sh build 32 64
 set -euo pipefail
 BUILD=${1:-build}
 shift || true
@@ -12,12 +21,20 @@ SIZES=${*:-32 64 96}
 BIN="$BUILD/bin/bench_dom"
 [ -x "$BIN" ] || { echo "missing $BIN: cmake --build $BUILD --target bench_dom" >&2; exit 1; }
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
-echo "| zones | quadrature | directions | moments | ranks | iterations | s/iteration | grind ns | sweep ns | moments ns | pipeline eff. | state B/cell |"
-echo "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+echo "| zones | quadrature | directions | moments | ranks | tile rows | octant overlap | iterations | s/iteration | grind ns | sweep ns | moments ns | pipeline eff. | state B/cell | 2-rank eff. |"
+echo "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
 for n in $SIZES; do
   for q in ${QUADS:-S4 S8 S16 cube96}; do
-    for np in 1 2; do
-      mpiexec -n "$np" --oversubscribe --bind-to none "$BIN" "$n" "$q" "${ITERATIONS:-5}" "${LEGENDRE:-4}" "${TILE_ROWS:-8}"
+    for tr in ${TILE_ROWS:-8}; do
+      for ov in ${OVERLAPS:-1 2 8}; do
+        r1=$(mpiexec -n 1 --oversubscribe --bind-to none "$BIN" "$n" "$q" "${ITERATIONS:-5}" "${LEGENDRE:-4}" "$tr" "$ov")
+        r2=$(mpiexec -n 2 --oversubscribe --bind-to none "$BIN" "$n" "$q" "${ITERATIONS:-5}" "${LEGENDRE:-4}" "$tr" "$ov")
+        echo "$r1 |"
+        # column 10 of the row (fields split on '|') is s/iteration
+        t1=$(echo "$r1" | awk -F'|' '{print $10}')
+        t2=$(echo "$r2" | awk -F'|' '{print $10}')
+        echo "$r2 $(awk -v a="$t1" -v b="$t2" 'BEGIN { printf "%.2f |", a / (2 * b) }')"
+      done
     done
   done
 done

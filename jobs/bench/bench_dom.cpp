@@ -1,7 +1,7 @@
 // Benchmark of the discrete-ordinates sweep (solvers/dom): grind time in LLNL Kripke's
 // definition, total iteration time / (zones x directions x groups x iterations), in ns.
 //
-//   mpiexec -n 2 ./bench_dom 64 cube96 [iterations=5] [legendre=4] [tile_rows=8]
+//   mpiexec -n 2 ./bench_dom 64 cube96 [iterations=5] [legendre=4] [tile_rows=8] [octant_overlap=2]
 //   (jobs/bench_dom.sh runs the table: 32³-96³, S8, S16, cube96; 1 and 2 ranks)
 //
 // Problem (Kripke-like): a homogeneous cube of N³ unit cells, sigma_t such that the cube is 10
@@ -41,6 +41,7 @@ int run(int argc, char** argv) {
     const int iterations = argc > 3 ? std::atoi(argv[3]) : 5;
     const int L = argc > 4 ? std::atoi(argv[4]) : 4;
     const int tile_rows = argc > 5 ? std::atoi(argv[5]) : 8;
+    const int overlap = argc > 6 ? std::atoi(argv[6]) : DomOptions{}.octant_overlap;
     DomOptions o;
     if (quad == "cube96") {
         o.quadrature = "cube96";
@@ -50,6 +51,7 @@ int run(int argc, char** argv) {
     }
     o.legendre_order = L;
     o.tile_rows = tile_rows;
+    o.octant_overlap = overlap;
     o.validate();
     const Decomposition d(MPI_COMM_WORLD, {n, n, n});
     Medium m;
@@ -63,6 +65,7 @@ int run(int argc, char** argv) {
     dom::add_light_sources(p, m, LightTransport{}, 0, ang);
     sweep::SweepOptions sopt;
     sopt.tile_rows = tile_rows;
+    sopt.octant_overlap = overlap;
     Report report;
     dom::SweepOutput out;
     {
@@ -78,10 +81,12 @@ int run(int argc, char** argv) {
     double eff = t.sweep_seconds > 0 ? 1.0 - t.wait_seconds / t.sweep_seconds : 1.0;
     MPI_Allreduce(MPI_IN_PLACE, &eff, 1, MPI_DOUBLE, MPI_MIN, d.comm());
     const double unknowns = static_cast<double>(d.global().cells()) * ang.quadrature.size() * r.iterations;
-    const double bytes = 8.0 * (3 * ang.nmom + 2 * ang.max_octant_size + 8);
+    // moments, source moments and phi of the previous iteration; psi and source per octant in flight
+    const double bytes = 8.0 * (3 * ang.nmom + 2 * overlap * ang.max_octant_size + 8);
     if (d.rank() == 0)
-        std::printf("| %d³ | %s | %d | %d | %d | %d | %.3f | %.2f | %.2f | %.2f | %.2f | %.0f |\n", n, quad.c_str(),
-                    ang.quadrature.size(), ang.nmom, d.size(), r.iterations, total / r.iterations,
+        std::printf("| %d³ | %s | %d | %d | %d | %d | %d | %d | %.3f | %.2f | %.2f | %.2f | %.2f | %.0f |\n", n,
+                    quad.c_str(), ang.quadrature.size(), ang.nmom, d.size(), tile_rows, overlap, r.iterations,
+                    total / r.iterations,
                     1e9 * total / unknowns, 1e9 * sweep_s / unknowns, 1e9 * moment_s / unknowns, eff, bytes);
     return 0;
 }

@@ -29,6 +29,16 @@ BandProblem make_band_optics(const Medium& m, int b, const Box& own, const Angul
     return p;
 }
 
+LightTransport without_sky(const LightTransport& lt) {
+    LightTransport r;
+    for (size_t l = 0; l < lt.lights.size(); ++l) {
+        if (lt.lights[l].name.rfind("sky[", 0) == 0) continue;
+        r.lights.push_back(lt.lights[l]);
+        r.tau_rho.push_back(lt.tau_rho[l]);
+    }
+    return r;
+}
+
 void add_light_sources(BandProblem& p, const Medium& m, const LightTransport& lt, int b, const AngularSet& ang) {
     const BandOptics& o = m.bands[static_cast<size_t>(b)];
     const int nl = static_cast<int>(lt.lights.size());

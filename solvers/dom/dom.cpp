@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "solvers/dom/angular_set.h"
@@ -12,11 +13,46 @@
 #include "src/core/error.h"
 #include "src/core/halo.h"
 #include "src/core/log.h"
+#include "src/scene/emission.h"
 
 namespace nimbus {
 namespace {
 
+// The uncollided sky of band b on the quadrature: one sweep of the sky boundary radiance alone
+// (no volume source, no scattering) with the true extinction kappa = rho sigma_t. The lagged
+// reflected planes are cleared first (a high reflective face then reflects nothing of it).
+void uncollided_sky(const Medium& m, int b, const dom::AngularSet& ang, dom::TransportSweeper& sweeper,
+                    dom::SweepOutput& unc) {
+    const Box own = m.rho.owned();
+    const BandOptics& o = m.bands[static_cast<size_t>(b)];
+    Field<double> kappa(own, 0, 1, 0.0), zero(own, 0, ang.nmom, 0.0), no_light(own, 0, 1, 0.0);
+    for_each_cell(own, [&](int i, int j, int k) { kappa(i, j, k) = m.rho(i, j, k) * o.sigma_t; });
+    dom::SweepSource src;
+    src.kappa = &kappa;
+    src.moments = &zero;
+    src.amp = &no_light;  // non-null: this sweep carries the boundary source
+    src.nl = 0;
+    sweeper.reset_reflections();
+    sweeper.sweep(src, unc);
+}
+
 class DiscreteOrdinates final : public ScatteringModel {
+    // DSA (dsa.h) is built for the step scheme (D = 1/(3 kappa_tr) + h/4): with diamond it
+    // slows down from ~1.5 mean free paths per cell and diverges from ~2 (tau-100 cube, a 0.999:
+    // 11, 15, 34 iterations at kappa h = 0.5, 1, 1.5; change ~1.3 per iteration at 2 and 6.25).
+    // DSA-preconditioned GMRES converges there (26 iterations at 6.25): an Error names it.
+    void check_diamond_dsa(const Decomposition& d, const dom::BandProblem& p) const {
+        if (opt_.scheme != "diamond" || opt_.iteration != "dsa") return;
+        double thick = 0.0;
+        for_each_cell(p.kappa.owned(), [&](int i, int j, int k) { thick = std::max(thick, p.kappa(i, j, k) * p.h); });
+        MPI_Allreduce(MPI_IN_PLACE, &thick, 1, MPI_DOUBLE, MPI_MAX, d.comm());
+        if (thick >= kDiamondDsaMaxCellTau)
+            throw Error(fmt::format("model.dom.scheme = 'diamond' with iteration = 'dsa' diverges on cells this thick "
+                                    "(max kappa* h = {:.2f} >= {}): use iteration = 'gmres' (DSA-preconditioned) or "
+                                    "scheme = 'step'", thick, kDiamondDsaMaxCellTau));
+    }
+    static constexpr double kDiamondDsaMaxCellTau = 2.0;
+
 public:
     explicit DiscreteOrdinates(const DomOptions& opt) : opt_(opt) { opt_.validate(); }
     std::string name() const override { return "dom"; }
@@ -25,7 +61,7 @@ public:
                 {"azimuthal", opt_.azimuthal}, {"legendre_order", opt_.legendre_order},
                 {"delta_m", opt_.delta_m}, {"scheme", opt_.scheme}, {"iteration", opt_.iteration},
                 {"tolerance", opt_.tolerance}, {"max_iterations", opt_.max_iterations},
-                {"tile_rows", opt_.tile_rows}};
+                {"tile_rows", opt_.tile_rows}, {"octant_overlap", opt_.octant_overlap}, {"reflective", opt_.reflective}, {"sky", opt_.sky}};
     }
     void solve(const SolveContext& ctx, DiffuseSolution& out) override;
 
@@ -37,12 +73,19 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
     ScopedTimer timer(ctx.report, "dom");
     const Decomposition& d = ctx.decomp;
     const Medium& m = ctx.medium;
-    if (opt_.scheme != "step")
-        throw Error(fmt::format("model.dom.scheme = '{}' is not implemented yet (use step)", opt_.scheme));
     const dom::AngularSet ang = dom::make_angular_set(opt_);
     sweep::SweepOptions sopt;
     sopt.tile_rows = opt_.tile_rows;
-    dom::TransportSweeper sweeper(d, ang, m.grid.h, sopt, 0.1 * opt_.tolerance);
+    sopt.octant_overlap = opt_.octant_overlap;
+    // Boundaries: reflective faces, and the sky as incoming radiance (then not a first-collision term).
+    dom::SweepBoundary bc;
+    for (const std::string& f : opt_.reflective)
+        bc.reflective[static_cast<size_t>(2 * (f[0] - 'x') + (f[1] == '+' ? 1 : 0))] = true;
+    bc.sky = opt_.sky == "boundary" && !ctx.scene.sky.radiance.empty();
+    const LightTransport first_collision = bc.sky ? dom::without_sky(ctx.light) : LightTransport{};
+    const LightTransport& lights = bc.sky ? first_collision : ctx.light;
+    const dom::SpatialScheme scheme = opt_.scheme == "diamond" ? dom::SpatialScheme::diamond : dom::SpatialScheme::step;
+    dom::TransportSweeper sweeper(d, ang, m.grid.h, sopt, 0.1 * opt_.tolerance, scheme, bc);
     const Box& own = d.local();
     const int ndir = ang.quadrature.size();
     const double global_cells = static_cast<double>(d.global().cells());
@@ -53,9 +96,18 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
     rec["bands"] = nlohmann::json::array();
     out = DiffuseSolution{};
     double iter_seconds = 0, unknown_iterations = 0;
+    const std::vector<VolumeSource> sources = volume_sources(ctx.scene);  // [[sources]], q = power / 4π
+    check_volume_sources(sources, m.rho, d);
     for (int b = 0; b < m.nbands(); ++b) {
         dom::BandProblem p = dom::make_band_optics(m, b, own, ang, opt_.delta_m);
-        dom::add_light_sources(p, m, ctx.light, b, ang);
+        check_diamond_dsa(d, p);
+        dom::add_light_sources(p, m, lights, b, ang);
+        sweeper.reset_reflections();
+        if (bc.sky) sweeper.set_sky_radiance(band_value(ctx.scene.sky.radiance, b));
+        if (!sources.empty())
+            for_each_cell(own, [&](int i, int j, int k) {
+                p.emission(i, j, k) = emitted_power(sources, m.rho, b, i, j, k) / (4.0 * std::acos(-1.0));
+            });
         dom::SweepOutput sw;
         const dom::IterationResult r =
             opt_.iteration == "gmres"
@@ -96,10 +148,16 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
                                 {"absorbed_power", e[1]},
                                 {"leakage", sw.leakage},
                                 {"energy_balance", e[0] > 0 ? (e[0] - e[1] - leaked) / e[0] : 0.0}});
+        // Sky as boundary radiance: psi holds the uncollided sky too; DESIGN's fluence_diffuse
+        // excludes it, so subtract the discrete uncollided sky (one sweep, true kappa: the
+        // delta-M forward peak of the sky stays in, as for the first-collision terms).
+        dom::SweepOutput unc;
+        if (bc.sky) uncollided_sky(m, b, ang, sweeper, unc);
         Field<double> fl(own, 1, 1, 0.0), fx(own, 1, 3, 0.0);
         for_each_cell(own, [&](int i, int j, int k) {
-            fl(i, j, k) = sw.fluence(i, j, k) + p.forward_fluence(i, j, k);
-            for (int c = 0; c < 3; ++c) fx(i, j, k, c) = sw.flux(i, j, k, c) + p.forward_flux(i, j, k, c);
+            fl(i, j, k) = sw.fluence(i, j, k) + p.forward_fluence(i, j, k) - (bc.sky ? unc.fluence(i, j, k) : 0.0);
+            for (int c = 0; c < 3; ++c)
+                fx(i, j, k, c) = sw.flux(i, j, k, c) + p.forward_flux(i, j, k, c) - (bc.sky ? unc.flux(i, j, k, c) : 0.0);
         });
         exchange_halo(fl, d);
         exchange_halo(fx, d);
@@ -118,7 +176,11 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
     rec["pipeline_wait_seconds"] = tm[1];
     rec["sweep_efficiency"] = eff;
     rec["periodic_passes"] = t.periodic_passes;
-    rec["state_bytes_per_cell"] = 8.0 * (3 * ang.nmom + ang.max_octant_size + 8 + 2 * std::max(1, static_cast<int>(ctx.light.lights.size())));
+    rec["scheme"] = opt_.scheme;
+    std::int64_t fixups = t.fixups;  // diamond: cell-directions fixed up, all ranks
+    MPI_Allreduce(MPI_IN_PLACE, &fixups, 1, MPI_INT64_T, MPI_SUM, d.comm());
+    rec["fixups"] = fixups;
+    rec["state_bytes_per_cell"] = 8.0 * (3 * ang.nmom + (scheme == dom::SpatialScheme::diamond ? 4 : 1) * ang.max_octant_size + 8 + 2 * std::max(1, static_cast<int>(ctx.light.lights.size())));
     if (d.rank() == 0)
         log::info("dom: {} on {}, grind time {:.2f} ns, sweep efficiency {:.2f}", ang.quadrature.name,
                   d.describe(), rec["grind_time_ns"].get<double>(), eff);

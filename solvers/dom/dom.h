@@ -1,13 +1,15 @@
 // Model `dom`: discrete ordinates for the diffuse radiance I_d (DESIGN §1), per band
 //   Ω·∇I + kappa* I = kappa* a* Σ_l chi*_l (2l+1)/(4π) ∫ P_l(Ω·Ω') I dΩ' + Q*(x, Ω)
 // with the delta-M scaled optics and the exact first-collision source of band_problem.h,
-// on the quadrature of DomOptions (src/physics/quadrature.h), swept with the step scheme on the
-// KBA engine (transport_sweep.h) and iterated by source iteration, DSA (iteration.h) or
+// on the quadrature of DomOptions (src/physics/quadrature.h), swept with the step or the diamond
+// (+ fix-up) scheme on the KBA engine (transport_sweep.h) and iterated by source iteration, DSA (iteration.h) or
 // GMRES on the scattering moments (gmres.h).
 //
 // Options (DomOptions, [model.dom]): quadrature, order, polar, azimuthal, legendre_order,
-// delta_m, scheme (step; diamond is not implemented yet), iteration (source | dsa | gmres),
-// tolerance, max_iterations, tile_rows.
+// delta_m, scheme (step | diamond), iteration (source | dsa | gmres), tolerance,
+// max_iterations, tile_rows, reflective (specular faces), sky (first-collision | boundary: the
+// sky's uniform radiance enters at the top and side faces; fluence_diffuse then subtracts the
+// uncollided sky computed by one extra sweep, keeping DESIGN's meaning).
 //
 // Outputs per band: fluence_diffuse = Σ_n w_n I_n + E0 (T* - T) (W/m²) and flux_diffuse =
 // Σ_n w_n Ω_n I_n + E0 (T* - T) w (W/m²), owned + 1 ghost, halo-exchanged. Report

@@ -84,16 +84,24 @@ DiffusionSynthetic::~DiffusionSynthetic() = default;
 int DiffusionSynthetic::correct(const Field<double>& fluence_old, Field<double>& fluence, Report& report) {
     (void)report;
     const Box& own = d_.local();
+    if (change_.owned().empty()) change_ = Field<double>(own, 0, 1, 0.0);
+    for_each_cell(own, [&](int i, int j, int k) { change_(i, j, k) = fluence(i, j, k) - fluence_old(i, j, k); });
+    const int iterations = solve(change_);
+    for_each_cell(own, [&](int i, int j, int k) { fluence(i, j, k) += delta_(i, j, k); });
+    return iterations;
+}
+
+int DiffusionSynthetic::solve(const Field<double>& r) {
     delta_.fill(0.0);
     if (!solver_) return 0;
-    // b = h² sigma_s (phi^{l+1/2} - phi^l) in full cells, 0 in empty ones: Assembler::rhs
-    // with Q0 = sigma_s (phi^{l+1/2} - phi^l) and G = 0 (no face terms).
+    // b = h² sigma_s r in full cells, 0 in empty ones: Assembler::rhs with Q0 = sigma_s r
+    // and G = 0 (no face terms).
     const size_t ncell = static_cast<size_t>(box_.cells());
     const double h2 = p_.h * p_.h;
     std::vector<double> b(ncell);
     size_t n = 0;
     for_each_cell(box_, [&](int i, int j, int k) {
-        b[n] = full_[n] ? h2 * p_.sigma_s(i, j, k) * (fluence(i, j, k) - fluence_old(i, j, k)) : 0.0;
+        b[n] = full_[n] ? h2 * p_.sigma_s(i, j, k) * r(i, j, k) : 0.0;
         ++n;
     });
     const double b_norm = global_norm(b, d_.comm());
@@ -136,7 +144,6 @@ int DiffusionSynthetic::correct(const Field<double>& fluence_old, Field<double>&
         if (full_[n]) delta_(i, j, k) = x[n];
         ++n;
     });
-    for_each_cell(own, [&](int i, int j, int k) { fluence(i, j, k) += delta_(i, j, k); });
     return iterations;
 }
 

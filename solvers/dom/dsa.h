@@ -13,6 +13,9 @@
 // without it DSA diverged on the tau-100 cube (6.25 mean free paths per cell: change ~1.2 per
 // iteration), with it the cube converges in the test's bound (tests/verification/dom).
 //
+// The same solve is the preconditioner of GMRES (gmres.h): solve() takes any fluence change r
+// and returns δ = A^{-1} sigma_s r, the correction of the last call.
+//
 // Collective over d.comm(). The operator does not change between iterations (only the
 // right-hand side does): the hypre grid, matrix and PFMG-PCG setup are built ONCE in the
 // constructor and every correct() is one solve (about half of the wall time went into the
@@ -43,6 +46,10 @@ public:
     // when the right-hand side vanishes everywhere). Throws Error (on every rank) when the
     // true relative residual stays above the tolerance.
     int correct(const Field<double>& fluence_old, Field<double>& fluence, Report& report);
+    // Collective. δ = A^{-1} sigma_s r for a fluence change r (W/m², owned cells, 1 component),
+    // into last_correction(). Same return value and errors as correct(). A linear map of r up to
+    // the solver tolerance (PCG from a zero initial guess).
+    int solve(const Field<double>& r);
     // The correction of the last call (owned cells, W/m²).
     const Field<double>& last_correction() const { return delta_; }
 
@@ -54,6 +61,7 @@ private:
     DiffusionOptions opt_;
     double kappa_floor_ = 0.0;
     Field<double> delta_;
+    Field<double> change_;  // correct()'s fluence change, kept to avoid an allocation per call
     // The hypre system on d.local() ∩ region (set up once; null when the region is empty).
     Box box_;
     std::vector<char> full_;  // per cell of box_, x fastest

@@ -1,22 +1,41 @@
 // Krylov iteration of one band: the transport problem written on the scattering moments,
 //   (I - K) phi = b,   K phi = D L^{-1} M (sigma_s chi ∘ phi),   b = D L^{-1} Q,
 // where L^{-1} is a transport sweep (transport_sweep.h), M moments-to-directions and D
-// directions-to-moments, solved by PETSc KSPGMRES (restart 30, no preconditioner) with a
-// MatShell whose MatMult is x - sweep(x) (Adams & Larsen 2002 §5; Warsa, Wareing & Morel 2004).
-// b costs one sweep of the external (first-collision + emission) source; a last sweep from the
-// converged moments yields the fluence, flux and leakage in `out`. Stops when the
-// unpreconditioned residual satisfies ||b - (I - K) phi||_2 <= tolerance ||b||_2.
-// The history is the relative residual per Krylov iteration.
+// directions-to-moments, solved by PETSc KSPGMRES (restart 30) with a MatShell whose MatMult is
+// x - sweep(x) (Adams & Larsen 2002 §5; Warsa, Wareing & Morel 2004).
+//
+// Preconditioner (GmresPreconditioner::dsa, the default): DSA (dsa.h) as a left PCShell.
+// One DSA step x' = x + (I + C)(b - (I - K) x) is a Richardson step on
+//   P^{-1} (I - K) phi = P^{-1} b,   P^{-1} r = r + e_0 A^{-1} sigma_s r_0,
+// where r_0 is the Y_00 moment of r and A the diffusion operator of dsa.h (moment and fluence
+// units differ by the constant Y_00, which cancels in the linear map). GMRES on this system
+// converges in a handful of iterations where source iteration needs thousands (thick cube,
+// tests/verification/dom/iteration_test.cpp). The DSA solve inside the preconditioner is run to
+// min(1e-4, 1e-2 tolerance) so that P^{-1} is linear to well below the outer tolerance.
+//
+// Stopping: the SAME quantity as source iteration and DSA (iteration.h), the relative change a
+// Richardson step would make, ||P^{-1} (b - (I - K) phi_k)||_2 <= tolerance ||phi_k||_2 (P = I
+// without preconditioner: the plain residual, which is source iteration's change). phi_k is
+// built from the Krylov basis at each iteration (no sweep). Norms over all moments (source
+// iteration and DSA use the Y_00 moment only; it dominates both norms).
+// b costs one sweep of the external (first-collision + emission) source; the initial guess is 0;
+// a last sweep from the converged moments yields the fluence, flux and leakage in `out`. Sweeps
+// per band: iterations + 2 (b, the last one; + 1 per GMRES restart); DSA solves: iterations + 1.
+// The history is the relative change per Krylov iteration; dsa_linear_iterations sums the
+// preconditioner's PFMG-PCG iterations.
 //
 // Collective over d.comm(). PETSc is initialized on first use if the program has not.
+// Throws Error (every rank) when a DSA solve fails; non-convergence is returned (converged false).
 #pragma once
 
 #include "solvers/dom/iteration.h"
 
 namespace nimbus::dom {
 
+enum class GmresPreconditioner { none, dsa };
+
 IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, const AngularSet& ang,
                            const BandProblem& p, double tolerance, int max_iterations, SweepOutput& out,
-                           Report& report);
+                           Report& report, GmresPreconditioner preconditioner = GmresPreconditioner::dsa);
 
 }  // namespace nimbus::dom

@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "solvers/dom/dsa.h"
+#include "solvers/dom/gmres.h"
 
 namespace nimbus::dom {
 namespace {
@@ -49,6 +50,9 @@ std::string format_history(const std::vector<double>& h) {
 IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, const AngularSet& ang,
                              const BandProblem& p, const std::string& method, double tolerance,
                              int max_iterations, SweepOutput& out, Report& report) {
+    if (method == "gmres" || method == "gmres-plain")
+        return gmres_band(d, sweeper, ang, p, tolerance, max_iterations, out, report,
+                          method == "gmres" ? GmresPreconditioner::dsa : GmresPreconditioner::none);
     const double t0 = MPI_Wtime();
     IterationResult res;
     const Box& own = d.local();

@@ -29,7 +29,8 @@ struct IterationResult {
     double seconds = 0;              // total iteration time (sweeps, moments, DSA)
 };
 
-// method: "source" or "dsa".
+// method: "source", "dsa", or the Krylov methods of gmres.h: "gmres" (DSA-preconditioned) and
+// "gmres-plain" (no preconditioner, for comparison), which this forwards to gmres_band.
 IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, const AngularSet& ang,
                              const BandProblem& p, const std::string& method, double tolerance,
                              int max_iterations, SweepOutput& out, Report& report);

@@ -4,25 +4,147 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "solvers/dom/cell_kernel.h"
+#include "solvers/dom/moment_kernels.h"
 #include "src/core/error.h"
 
 namespace nimbus::dom {
 namespace {
 
 constexpr int kMaxPeriodicPasses = 10000;
+constexpr const char* kFaceNames[6] = {"x-", "x+", "y-", "y+", "z-", "z+"};
+
+// Smallest value of any component over the owned cells.
+double min_owned(const Field<double>& psi) {
+    double m = std::numeric_limits<double>::infinity();
+    for_each_cell(psi.owned(), [&](int i, int j, int k) {
+        const double* v = &psi(i, j, k);
+        for (int c = 0; c < psi.ncomp(); ++c) m = std::min(m, v[c]);
+    });
+    return m;
+}
 
 // Offset of cell (i, j, k) in a ghost-free field on box b, in cells.
 inline std::ptrdiff_t cell_offset(const Box& b, int i, int j, int k) {
     return (static_cast<std::ptrdiff_t>(k - b.lo[2]) * b.size(1) + (j - b.lo[1])) * b.size(0) + (i - b.lo[0]);
 }
 
+// Octant groups swept at once (DomOptions::octant_overlap, sweep::run_octants): 1: each octant
+// alone; 2: the +z/-z pairs with equal x/y signs {xy, xy + 4}; 8: all at once. Groups run in
+// the order of their octants' x/y bits, so a reflective LOW x/y face still sees its mirrored
+// octant finished earlier in the same sweep (transport_sweep.h). A reflective z- face needs
+// octant o before o + 4, so it limits the overlap to 1; a reflective x- or y- face limits 8 to 2.
+// Periodic x/y: 1. (The layer iteration starts from the ghost values the field holds from its
+// previous octant, so its tolerance-level result, 1e-11, would depend on which octants share a
+// field; with one field it is the same sequence every sweep, and a periodic slab run has one
+// tile per rank anyway.)
+std::vector<std::vector<int>> octant_groups(int overlap, const std::array<bool, 6>& reflective, bool periodic) {
+    if (periodic) overlap = 1;
+    if (overlap == 8 && (reflective[0] || reflective[2] || reflective[4])) overlap = 2;
+    if (overlap == 2 && reflective[4]) overlap = 1;
+    std::vector<std::vector<int>> groups;
+    if (overlap == 8) return {{0, 1, 2, 3, 4, 5, 6, 7}};
+    for (int xy = 0; xy < 4; ++xy) {
+        if (overlap == 2) groups.push_back({xy, xy + 4});
+    }
+    if (overlap == 2) return groups;
+    for (int o = 0; o < 8; ++o) groups.push_back({o});
+    return groups;
+}
+
+// One octant in flight: its psi field and source, and the loop constants of its kernel.
+struct OctantSlot {
+    int o = 0, nd = 0;
+    sweep::Octant octant;
+    Field<double>* psi = nullptr;
+    std::vector<double>* source = nullptr;  // cells x nd (+3, moment_kernels.h)
+    const double *cx = nullptr, *cy = nullptr, *cz = nullptr, *cs = nullptr;
+    std::ptrdiff_t ox = 0, oy = 0, oz = 0;  // upwind neighbour offsets in psi
+    int fx = 0, fy = 0, fz = 0;             // face blocks (diamond)
+    sweep::AxisRange rx{0, 0, 1}, ry{0, 0, 1};
+    int last_i = 0, last_j = 0;             // the last cell of a layer (periodic iteration)
+    std::int64_t fixups = 0;
+};
+
+// Each octant's source for every cell (Kripke's LPlusTimes, moment_kernels.h), in chunks of
+// cells with all octants of the group per chunk, so the chunk's source moments are read from
+// memory once. +3: the vector stores of a chunk's last cell may run 3 values past it.
+void group_sources(std::ptrdiff_t ncell, const SweepSource& src, const AngularSet& ang, std::vector<OctantSlot>& slots) {
+    const int nl = src.nl, nmom = ang.nmom;
+    const double* amp = nl > 0 ? src.amp->data() : nullptr;
+    const double* mom = src.moments->data();
+    std::vector<OctantSourceOp> ops;
+    for (OctantSlot& sl : slots) {
+        sl.source->resize(static_cast<size_t>(ncell * sl.nd + 3));
+        ops.push_back(make_octant_source_op(sl.nd, nl, nmom, src.light_phase[static_cast<size_t>(sl.o)].data(),
+                                            ang.octants[static_cast<size_t>(sl.o)].Y.data()));
+    }
+    constexpr std::ptrdiff_t kChunk = 128;  // cells (25 moments: 25 KB of source moments)
+    for (std::ptrdiff_t c0 = 0; c0 < ncell; c0 += kChunk) {
+        const std::ptrdiff_t n = std::min(kChunk, ncell - c0);
+        for (size_t q = 0; q < slots.size(); ++q)
+            apply_source(ops[q], n, amp ? amp + c0 * nl : nullptr, mom + c0 * nmom, slots[q].source->data() + c0 * slots[q].nd);
+    }
+}
+
+// Moments, fluence and flux of the octants of a group (Kripke's LTimes, moment_kernels.h), one
+// x row at a time with all octants of the group per row, so the row's moments are read and
+// written once per group.
+void group_moments(const Box& own, const AngularSet& ang, const std::vector<OctantSlot>& slots, SweepOutput& out) {
+    const int nmom = ang.nmom;
+    std::vector<OctantMomentOp> ops;
+    for (const OctantSlot& sl : slots) {
+        const auto& oc = ang.octants[static_cast<size_t>(sl.o)];
+        ops.push_back(make_octant_moment_op(sl.nd, nmom, oc.wY.data(), oc.weight.data(), oc.dir.data()));
+    }
+    for (int k = own.lo[2]; k < own.hi[2]; ++k)
+        for (int j = own.lo[1]; j < own.hi[1]; ++j) {
+            const std::ptrdiff_t c = cell_offset(own, own.lo[0], j, k);
+            for (size_t q = 0; q < slots.size(); ++q) {
+                const Field<double>& psi = *slots[q].psi;
+                apply_moments(ops[q], own.size(0), &psi(own.lo[0], j, k), psi.stride(0), out.phi.data() + c * nmom,
+                              out.fluence.data() + c, out.flux.data() + 3 * c);
+            }
+        }
+}
+
 }  // namespace
 
 TransportSweeper::TransportSweeper(const Decomposition& d, const AngularSet& ang, double h,
-                                   const sweep::SweepOptions& opt, double periodic_tolerance)
-    : d_(d), ang_(ang), h_(h), opt_(opt), periodic_tol_(periodic_tolerance) {
+                                   const sweep::SweepOptions& opt, double periodic_tolerance,
+                                   SpatialScheme scheme, const SweepBoundary& boundary, bool fixup)
+    : d_(d), ang_(ang), h_(h), opt_(opt), periodic_tol_(periodic_tolerance), scheme_(scheme), bc_(boundary),
+      fixup_(fixup) {
+    for (int f = 0; f < 6; ++f)
+        if (bc_.reflective[static_cast<size_t>(f)] && d.periodic(f / 2))
+            throw Error(fmt::format("dom: face {} cannot be both reflective and periodic", kFaceNames[f]));
+    // Mirror of every direction in each axis (Ω_a -> -Ω_a lands in octant o ^ (1 << a)).
+    for (int a = 0; a < 3; ++a) {
+        const bool needed = bc_.reflective[static_cast<size_t>(2 * a)] || bc_.reflective[static_cast<size_t>(2 * a + 1)];
+        for (int o = 0; o < 8; ++o) {
+            const auto& oc = ang.octants[static_cast<size_t>(o)];
+            const auto& om = ang.octants[static_cast<size_t>(o ^ (1 << a))];
+            auto& mirror = mirror_[static_cast<size_t>(a)][static_cast<size_t>(o)];
+            mirror.assign(static_cast<size_t>(oc.size()), -1);
+            for (int n = 0; n < oc.size(); ++n) {
+                if (oc.abs_mu[static_cast<size_t>(a)][static_cast<size_t>(n)] == 0.0) continue;
+                Vec3 w = oc.dir[static_cast<size_t>(n)];
+                w[a] = -w[a];
+                for (int m = 0; m < om.size(); ++m) {
+                    const Vec3& v = om.dir[static_cast<size_t>(m)];
+                    if (std::abs(v.x - w.x) + std::abs(v.y - w.y) + std::abs(v.z - w.z) < 1e-10)
+                        mirror[static_cast<size_t>(n)] = m;
+                }
+                if (needed && mirror[static_cast<size_t>(n)] < 0)
+                    throw Error(fmt::format("dom: reflective {} faces need a quadrature symmetric in {}; {} has no mirror "
+                                            "of direction ({:.4f}, {:.4f}, {:.4f})", "xyz"[a], "xyz"[a],
+                                            ang.quadrature.name, oc.dir[static_cast<size_t>(n)].x,
+                                            oc.dir[static_cast<size_t>(n)].y, oc.dir[static_cast<size_t>(n)].z));
+            }
+        }
+    }
     for (int a = 0; a < 2; ++a)
         if (d.periodic(a) && d.dims()[a] != 1)
             throw Error(fmt::format("dom: periodic axis {} must not be split over ranks ({})", "xy"[a], d.describe()));
@@ -37,63 +159,108 @@ TransportSweeper::TransportSweeper(const Decomposition& d, const AngularSet& ang
             for (size_t a = 0; a < 3; ++a) c[a][n] = oc.abs_mu[a][n] / h;
             c[3][n] = c[0][n] + c[1][n] + c[2][n];
         }
-        if (nd > 0 && psi_.find(oc.size()) == psi_.end()) psi_.emplace(oc.size(), Field<double>(d.local(), 1, oc.size(), 0.0));
+        const int blocks = scheme_ == SpatialScheme::diamond ? 4 : 1;  // [cell | x | y | z faces]
+        if (nd > 0 && psi_.find(oc.size()) == psi_.end())
+            psi_.emplace(oc.size(), Field<double>(d.local(), 1, blocks * oc.size(), 0.0));
     }
+}
+
+std::ptrdiff_t TransportSweeper::plane_index(int axis, int i, int j, int k) const {
+    const Box& own = d_.local();
+    const int idx[3] = {i, j, k};
+    const int b1 = axis == 0 ? 1 : 0, b2 = axis == 2 ? 1 : 2;
+    return static_cast<std::ptrdiff_t>(idx[b2] - own.lo[b2]) * own.size(b1) + (idx[b1] - own.lo[b1]);
+}
+
+void TransportSweeper::reset_reflections() {
+    for (auto& face : reflected_)
+        for (auto& plane : face) plane.clear();
 }
 
 void TransportSweeper::set_upwind_ghosts(Field<double>& psi, int o) {
     const auto& oc = ang_.octants[static_cast<size_t>(o)];
     const Box& own = d_.local();
+    const int nd = oc.size(), blocks = psi.ncomp() / nd;
     for (int a = 0; a < 3; ++a) {
         const int s = oc.octant.s[a];
         const bool at_boundary = s > 0 ? d_.at_low_boundary(a) : d_.at_high_boundary(a);
         // Interior faces are filled by the engine from upstream; periodic ones per layer.
         if (!at_boundary || d_.periodic(a)) continue;
+        const int f = 2 * a + (s > 0 ? 0 : 1);  // the face this octant enters through
+        const bool reflective = bc_.reflective[static_cast<size_t>(f)];
+        const std::vector<double>& refl = reflected_[static_cast<size_t>(f)][static_cast<size_t>(o ^ (1 << a))];
+        const std::vector<int>& mirror = mirror_[static_cast<size_t>(a)][static_cast<size_t>(o)];
+        const bool sky = sky_on_ && !reflective && f != 4;
+        const double* mu = oc.abs_mu[static_cast<size_t>(a)].data();
         Box p = own;
         p.lo[a] = s > 0 ? own.lo[a] - 1 : own.hi[a];
         p.hi[a] = p.lo[a] + 1;
+        double power = 0.0;
         for_each_cell(p, [&](int i, int j, int k) {
             double* v = &psi(i, j, k);
-            for (int c = 0; c < psi.ncomp(); ++c) v[c] = 0.0;  // vacuum
+            const double* r = reflective && !refl.empty() ? refl.data() + plane_index(a, i, j, k) * nd : nullptr;
+            for (int n = 0; n < nd; ++n) {
+                double in = 0.0;  // vacuum
+                if (r) {
+                    const int m = mirror[static_cast<size_t>(n)];
+                    in = m >= 0 ? r[m] : 0.0;
+                } else if (sky && oc.dir[static_cast<size_t>(n)].z < 0.0) {
+                    in = sky_radiance_;
+                }
+                for (int b = 0; b < blocks; ++b) v[b * nd + n] = in;
+                power += oc.weight[static_cast<size_t>(n)] * mu[n] * in;
+            }
+        });
+        incoming_[static_cast<size_t>(f)] += h_ * h_ * power;
+    }
+}
+
+void TransportSweeper::store_reflected(const Field<double>& psi, int o) {
+    const auto& oc = ang_.octants[static_cast<size_t>(o)];
+    const Box& own = d_.local();
+    const int nd = oc.size();
+    for (int a = 0; a < 3; ++a) {
+        const int s = oc.octant.s[a];
+        const int f = 2 * a + (s > 0 ? 1 : 0);  // the face this octant leaves through
+        const bool at_boundary = s > 0 ? d_.at_high_boundary(a) : d_.at_low_boundary(a);
+        if (!at_boundary || !bc_.reflective[static_cast<size_t>(f)]) continue;
+        Box p = own;
+        p.lo[a] = s > 0 ? own.hi[a] - 1 : own.lo[a];
+        p.hi[a] = p.lo[a] + 1;
+        std::vector<double>& buf = reflected_[static_cast<size_t>(f)][static_cast<size_t>(o)];
+        buf.resize(static_cast<size_t>(p.cells() * nd));
+        const int off = face_offset(a, nd);
+        for_each_cell(p, [&](int i, int j, int k) {
+            const double* v = &psi(i, j, k) + off;
+            std::copy(v, v + nd, buf.data() + plane_index(a, i, j, k) * nd);
         });
     }
 }
 
 void TransportSweeper::reduce_octant(const Field<double>& psi, int o, SweepOutput& out) {
     const auto& oc = ang_.octants[static_cast<size_t>(o)];
-    const int nd = oc.size(), nmom = ang_.nmom;
+    const int nd = oc.size();
     const Box& own = d_.local();
     const Box& g = d_.global();
     const double area = h_ * h_;
-    for_octant_size(nd, [&](auto size) {
-        constexpr int ND = decltype(size)::value;
-        for_each_cell(own, [&](int i, int j, int k) {
-            const double* p = &psi(i, j, k);
-            const std::ptrdiff_t c = cell_offset(own, i, j, k);
-            if constexpr (ND > 0)
-                accumulate_moments_n<ND>(nmom, oc.wY.data(), p, out.phi.data() + c * nmom);
-            else
-                accumulate_moments(nd, nmom, oc.wY.data(), p, out.phi.data() + c * nmom);
-            double f = 0.0, F[3] = {0.0, 0.0, 0.0};
-            for (int n = 0; n < nd; ++n) {
-                const double wp = oc.weight[static_cast<size_t>(n)] * p[n];
-                const Vec3& w = oc.dir[static_cast<size_t>(n)];
-                f += wp;
-                F[0] += wp * w.x;
-                F[1] += wp * w.y;
-                F[2] += wp * w.z;
-            }
-            out.fluence.data()[c] += f;
-            for (int a = 0; a < 3; ++a) out.flux.data()[c * 3 + a] += F[a];
-            const int idx[3] = {i, j, k};
-            for (int a = 0; a < 3; ++a) {
-                if (d_.periodic(a)) continue;
-                const int s = oc.octant.s[a];
-                const bool edge = s > 0 ? idx[a] == g.hi[a] - 1 : idx[a] == g.lo[a];
-                if (edge) out.leakage[static_cast<size_t>(2 * a + (s > 0 ? 1 : 0))] += area * std::abs(F[a]);
-            }
+    // Leakage: the outgoing face values of the cells on the domain's downwind faces.
+    for (int a = 0; a < 3; ++a) {
+        if (d_.periodic(a)) continue;
+        const int s = oc.octant.s[a];
+        const int edge = s > 0 ? g.hi[a] - 1 : g.lo[a];
+        if (edge < own.lo[a] || edge >= own.hi[a]) continue;
+        Box plane = own;
+        plane.lo[a] = edge;
+        plane.hi[a] = edge + 1;
+        const double* mu = oc.abs_mu[static_cast<size_t>(a)].data();
+        double& leakage = out.leakage[static_cast<size_t>(2 * a + (s > 0 ? 1 : 0))];
+        for_each_cell(plane, [&](int i, int j, int k) {
+            const double* face = &psi(i, j, k) + face_offset(a, nd);  // outgoing face values
+            double leak = 0.0;
+            for (int n = 0; n < nd; ++n) leak += oc.weight[static_cast<size_t>(n)] * mu[n] * face[n];
+            leakage += area * leak;
         });
-    });
+    }
 }
 
 void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
@@ -109,95 +276,147 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
         out.flux.fill(0.0);
     }
     out.leakage.fill(0.0);
+    out.min_psi = std::numeric_limits<double>::infinity();
+    incoming_.fill(0.0);
+    sky_on_ = bc_.sky && src.amp != nullptr;
+    const bool fixup = fixup_ && src.amp != nullptr;  // not on GMRES's operator sweeps (must stay linear)
     const double* kap = src.kappa->data();
-    const double* mom = src.moments->data();
-    const double* amp = src.nl > 0 ? src.amp->data() : nullptr;
-    const int nl = src.nl;
-    for (int o = 0; o < 8; ++o) {
-        const auto& oc = ang_.octants[static_cast<size_t>(o)];
-        const int nd = oc.size();
-        if (nd == 0) continue;
-        Field<double>& psi = psi_.at(nd);
-        const auto& c = coef_[static_cast<size_t>(o)];
-        const double *cx = c[0].data(), *cy = c[1].data(), *cz = c[2].data(), *cs = c[3].data();
-        const double* Y = oc.Y.data();
-        const double* P = src.light_phase[static_cast<size_t>(o)].data();
-        // The octant's source for every cell first (Kripke's LPlusTimes), so that repeated
-        // periodic passes only redo the cheap transport kernel.
-        std::vector<double>& Sq = source_;
-        Sq.resize(static_cast<size_t>(own.cells() * nd));
-        const double t_src = MPI_Wtime();
-        for_octant_size(nd, [&](auto size) {
-            constexpr int ND = decltype(size)::value;
-            const std::ptrdiff_t ncell = own.cells();
-            double* S = Sq.data();
-            for (std::ptrdiff_t cell = 0; cell < ncell; ++cell) {
-                const double* A = amp ? amp + cell * nl : nullptr;
-                if constexpr (ND > 0)
-                    cell_source_n<ND>(nl, nmom, A, P, Y, mom + cell * nmom, S + cell * ND);
-                else
-                    cell_source(nd, nl, nmom, A, P, Y, mom + cell * nmom, S + cell * nd);
-            }
-        });
-        timing_.moment_seconds += MPI_Wtime() - t_src;
-        const double* Sp = Sq.data();
-        double* pp = psi.data();
-        const std::ptrdiff_t ox = oc.octant.s[0] * psi.stride(0), oy = oc.octant.s[1] * psi.stride(1),
-                             oz = oc.octant.s[2] * psi.stride(2);
-        auto cell_kernel = [&](int i, int j, int k) {
-            const std::ptrdiff_t cell = cell_offset(own, i, j, k);
-            double* p = pp + psi.index(i, j, k);
-            step_cell(nd, kap[cell], Sp + cell * nd, cx, cy, cz, cs, p - ox, p - oy, p - oz, p);
-        };
-        // Periodic x/y: the engine sweeps whole z layers (one tile); after the last cell of a
-        // layer, the layer's periodic ghosts are set to its downwind edges and the layer is
-        // recomputed until they agree (local: no communication).
-        const bool periodic = d_.periodic(0) || d_.periodic(1);
-        const sweep::AxisRange rx = sweep::upwind_range(own, 0, oc.octant), ry = sweep::upwind_range(own, 1, oc.octant);
-        const int last_i = rx.end - rx.step, last_j = ry.end - ry.step;
-        auto periodic_layer = [&](int k) {
-            for (int pass = 0;; ++pass) {
-                double change = 0.0, scale = 0.0;
-                for (int a = 0; a < 2; ++a) {
-                    if (!d_.periodic(a)) continue;
-                    const int s = oc.octant.s[a];
-                    const int ghost = s > 0 ? own.lo[a] - 1 : own.hi[a], edge = s > 0 ? own.hi[a] - 1 : own.lo[a];
-                    const int b = 1 - a;
-                    for (int t = own.lo[b]; t < own.hi[b]; ++t) {
-                        double* g = a == 0 ? &psi(ghost, t, k) : &psi(t, ghost, k);
-                        const double* e = a == 0 ? &psi(edge, t, k) : &psi(t, edge, k);
-                        for (int n = 0; n < nd; ++n) {
-                            change = std::max(change, std::abs(e[n] - g[n]));
-                            scale = std::max(scale, std::abs(e[n]));
-                            g[n] = e[n];
-                        }
+    // Octants in groups swept at once (octant_groups above; a group of one is the plain KBA
+    // sweep). Slot q of a group holds octant group[q]: its psi field (slot 0: psi_, others:
+    // overlap_psi_) and its source (source_, overlap_source_).
+    const bool diamond = scheme_ == SpatialScheme::diamond;
+    const bool periodic = d_.periodic(0) || d_.periodic(1);
+    auto cell_kernel = [&](OctantSlot& sl, int i, int j, int k) {
+        const std::ptrdiff_t cell = cell_offset(own, i, j, k);
+        const int nd = sl.nd;
+        const double* S = sl.source->data() + cell * nd;
+        double* p = sl.psi->data() + sl.psi->index(i, j, k);
+        if (diamond)
+            sl.fixups += diamond_cell(nd, kap[cell], S, sl.cx, sl.cy, sl.cz, p - sl.ox + sl.fx, p - sl.oy + sl.fy,
+                                      p - sl.oz + sl.fz, p, p + sl.fx, p + sl.fy, p + sl.fz, fixup);
+        else
+            step_cell(nd, kap[cell], S, sl.cx, sl.cy, sl.cz, sl.cs, p - sl.ox, p - sl.oy, p - sl.oz, p);
+    };
+    // Periodic x/y: the engine sweeps whole z layers (one tile); after the last cell of a
+    // layer, the layer's periodic ghosts are set to its downwind edges and the layer is
+    // recomputed until they agree (local: no communication; octant_overlap is 1 then, see
+    // octant_groups). Diamond: under-relaxed by 1/2,
+    // since its face relation out = 2 psi - in passes a ghost error on with a factor near -1
+    // for directions nearly normal to the axis, and the fix-up's switching can then cycle
+    // (measured: a 2-cycle on the sky-lit absorber slab, S8, without the relaxation).
+    auto periodic_layer = [&](OctantSlot& sl, int k) {
+        Field<double>& psi = *sl.psi;
+        const int nd = sl.nd;
+        for (int pass = 0;; ++pass) {
+            double change = 0.0, scale = 0.0;
+            for (int a = 0; a < 2; ++a) {
+                if (!d_.periodic(a)) continue;
+                const int s = sl.octant.s[a];
+                const int ghost = s > 0 ? own.lo[a] - 1 : own.hi[a], edge = s > 0 ? own.hi[a] - 1 : own.lo[a];
+                const int b = 1 - a;
+                for (int t = own.lo[b]; t < own.hi[b]; ++t) {
+                    double* g = (a == 0 ? &psi(ghost, t, k) : &psi(t, ghost, k)) + face_offset(a, nd);
+                    const double* e = (a == 0 ? &psi(edge, t, k) : &psi(t, edge, k)) + face_offset(a, nd);
+                    for (int n = 0; n < nd; ++n) {
+                        change = std::max(change, std::abs(e[n] - g[n]));
+                        scale = std::max(scale, std::abs(e[n]));
+                        g[n] = diamond ? 0.5 * (g[n] + e[n]) : e[n];
                     }
                 }
-                if (change <= periodic_tol_ * scale) return;
-                if (pass >= kMaxPeriodicPasses) {
-                    periodic_failure_ = std::max(periodic_failure_, change / scale);
-                    return;
-                }
-                ++timing_.periodic_passes;
-                timing_.cell_directions += static_cast<std::int64_t>(own.size(0)) * own.size(1) * nd;
-                for (int j = ry.first; j != ry.end; j += ry.step)
-                    for (int i = rx.first; i != rx.end; i += rx.step) cell_kernel(i, j, k);
             }
-        };
-        auto kernel = [&](int i, int j, int k) {
-            cell_kernel(i, j, k);
-            if (periodic && i == last_i && j == last_j) periodic_layer(k);
-        };
-        set_upwind_ghosts(psi, o);
+            if (change <= periodic_tol_ * scale) return;
+            if (pass >= kMaxPeriodicPasses) {
+                periodic_failure_ = std::max(periodic_failure_, change / scale);
+                return;
+            }
+            ++timing_.periodic_passes;
+            timing_.cell_directions += static_cast<std::int64_t>(own.size(0)) * own.size(1) * nd;
+            for (int j = sl.ry.first; j != sl.ry.end; j += sl.ry.step)
+                for (int i = sl.rx.first; i != sl.rx.end; i += sl.rx.step) cell_kernel(sl, i, j, k);
+        }
+    };
+    auto kernel = [&](OctantSlot& sl, int i, int j, int k) {
+        cell_kernel(sl, i, j, k);
+        if (periodic && i == sl.last_i && j == sl.last_j) periodic_layer(sl, k);
+    };
+    for (const std::vector<int>& group : octant_groups(opt_.octant_overlap, bc_.reflective, periodic)) {
+        std::vector<OctantSlot> slots;
+        if (overlap_psi_.size() + 1 < group.size()) {  // before taking pointers into them
+            overlap_psi_.resize(group.size() - 1);
+            overlap_source_.resize(group.size() - 1);
+        }
+        for (int o : group) {
+            const auto& oc = ang_.octants[static_cast<size_t>(o)];
+            const int nd = oc.size();
+            if (nd == 0) continue;
+            OctantSlot sl;
+            sl.o = o;
+            sl.nd = nd;
+            sl.octant = oc.octant;
+            const size_t q = slots.size();
+            Field<double>& by_size = psi_.at(nd);
+            if (q == 0) {
+                sl.psi = &by_size;
+                sl.source = &source_;
+            } else {
+                Field<double>& f = overlap_psi_[q - 1];
+                if (f.owned() != own || f.ncomp() != by_size.ncomp()) f = Field<double>(own, 1, by_size.ncomp(), 0.0);
+                sl.psi = &f;
+                sl.source = &overlap_source_[q - 1];
+            }
+            const auto& c = coef_[static_cast<size_t>(o)];
+            sl.cx = c[0].data();
+            sl.cy = c[1].data();
+            sl.cz = c[2].data();
+            sl.cs = c[3].data();
+            sl.ox = oc.octant.s[0] * sl.psi->stride(0);
+            sl.oy = oc.octant.s[1] * sl.psi->stride(1);
+            sl.oz = oc.octant.s[2] * sl.psi->stride(2);
+            sl.fx = face_offset(0, nd);
+            sl.fy = face_offset(1, nd);
+            sl.fz = face_offset(2, nd);
+            sl.rx = sweep::upwind_range(own, 0, oc.octant);
+            sl.ry = sweep::upwind_range(own, 1, oc.octant);
+            sl.last_i = sl.rx.end - sl.rx.step;
+            sl.last_j = sl.ry.end - sl.ry.step;
+            slots.push_back(sl);
+        }
+        if (slots.empty()) continue;
+        // Sources first (group_sources), so that repeated periodic passes only redo the cheap
+        // transport kernel.
+        const double t_src = MPI_Wtime();
+        group_sources(own.cells(), src, ang_, slots);
+        timing_.moment_seconds += MPI_Wtime() - t_src;
+        for (OctantSlot& sl : slots) set_upwind_ghosts(*sl.psi, sl.o);
         const double t0 = MPI_Wtime();
-        const auto stats = sweep::run(d_, psi, oc.octant, opt_, kernel);
+        sweep::SweepStats stats;
+        if (slots.size() == 1) {
+            OctantSlot& sl = slots[0];
+            stats = sweep::run(d_, *sl.psi, sl.octant, opt_, [&](int i, int j, int k) { kernel(sl, i, j, k); });
+        } else {
+            std::vector<Field<double>*> fields;
+            std::vector<sweep::Octant> octants;
+            for (OctantSlot& sl : slots) {
+                fields.push_back(sl.psi);
+                octants.push_back(sl.octant);
+            }
+            stats = sweep::run_octants(d_, fields, octants, opt_,
+                                       [&](int q, int i, int j, int k) { kernel(slots[static_cast<size_t>(q)], i, j, k); });
+        }
         timing_.sweep_seconds += MPI_Wtime() - t0;
         timing_.wait_seconds += stats.wait_seconds;
-        timing_.cell_directions += own.cells() * nd;
+        for (OctantSlot& sl : slots) {
+            timing_.cell_directions += own.cells() * sl.nd;
+            timing_.fixups += sl.fixups;
+            store_reflected(*sl.psi, sl.o);
+            out.min_psi = std::min(out.min_psi, min_owned(*sl.psi));
+        }
         const double t1 = MPI_Wtime();
-        reduce_octant(psi, o, out);
+        group_moments(own, ang_, slots, out);
         timing_.moment_seconds += MPI_Wtime() - t1;
+        for (OctantSlot& sl : slots) reduce_octant(*sl.psi, sl.o, out);  // leakage
     }
+    for (size_t f = 0; f < 6; ++f) out.leakage[f] -= incoming_[f];  // net leakage
     MPI_Allreduce(MPI_IN_PLACE, out.leakage.data(), 6, MPI_DOUBLE, MPI_SUM, d_.comm());
     const double failure = periodic_failure_;
     periodic_failure_ = 0.0;

@@ -4,17 +4,51 @@
 // to moments. Only the moments, one octant's angular flux and its source are stored (plus the
 // periodic boundary planes, per octant).
 //
-// Boundaries: vacuum (zero incoming radiance) on non-periodic domain faces; periodic x/y
-// (Decomposition::periodic) by iterating the boundary planes layer by layer: the engine sweeps
+// Octant overlap (SweepOptions::octant_overlap = [model.dom] octant_overlap): with 2, the +z/-z
+// pairs with equal x/y signs, with 8 all octants, are swept at once on the engine's
+// run_octants (data-driven: a rank computes whichever octant's next tile has its upstream
+// plane), so a +z and a -z octant run from the opposite ends of the slab chain and the
+// pipeline fill of one is covered by the other's work. Memory: one psi field and one source
+// per octant in flight. A reflective z- face limits the overlap to 1 and a reflective x- or y-
+// face limits 8 to 2 (the mirrored octant must finish first, see below); periodic x/y sweeps
+// run with overlap 1 (octant_groups in the .cpp says why).
+//
+// Spatial scheme (cell_kernel.h): step, psi stored as one value per direction and cell
+// (ncomp = nd, the upwind cell's value is the incoming face value); or diamond difference with
+// fix-up, which needs the outgoing FACE value per axis: psi then holds 4 blocks of nd values
+// per cell, [cell | x face | y face | z face] (ncomp = 4 nd). This keeps the engine's contract
+// (the downwind cell reads its upwind neighbour's storage: block 1 + a along axis a) with one
+// field and one halo plane, at the price of sending 4 nd values per boundary cell where nd
+// would do (the engine packs whole cells); the cell block stays first so the moment reduction
+// reads psi(i, j, k)[n] for either scheme.
+//
+// Domain-face boundaries (SweepBoundary; faces x-, x+, y-, y+, z-, z+):
+// - vacuum: zero incoming radiance (default);
+// - reflective (specular): psi_in(Ω) = psi_out(Ω') with Ω' = Ω mirrored in the face, taken
+//   from the mirrored direction of octant o ^ (1 << axis) (the constructor checks that the
+//   quadrature has every mirror). Octants are swept in the order 0..7 (bit a set = moving
+//   toward +a), so at a LOW face (x-, y-, z-) the mirrored octant is done earlier in the same
+//   sweep (exact); at a HIGH face it is the previous sweep's (lagged one sweep: converged by the
+//   outer source/DSA iteration, not a linear operator for GMRES). Requires that octant
+//   o ^ (1 << a) finishes on this rank before octant o starts when bit a of o is set.
+// - sky: a uniform incoming radiance L (set_sky_radiance, per band) for every downward
+//   direction (Ω_z < 0) entering through the top face or a side face (vacuum for upward ones),
+//   on the non-reflective, non-periodic faces. Applied only on sweeps that carry the external
+//   sources (src.amp != nullptr), so GMRES's scattering-only operator sweeps stay homogeneous.
+//   Likewise the diamond fix-up: it acts only on those sweeps (a physical radiance); GMRES's
+//   operator sweeps of Krylov vectors, which may be negative, stay linear.
+// - periodic x/y (Decomposition::periodic), by iterating the boundary planes layer by layer
+//   (under-relaxed by 1/2 for diamond, see sweep()): the engine sweeps
 // whole z layers, and after a layer is done its upwind ghost columns/rows are set to its
 // downwind edges and the layer is recomputed until they change by less than
 // `periodic_tolerance` (relative, max norm). Local work only, no extra communication.
 // Periodic axes must not be split over ranks.
 //
 // Outputs per sweep (owned cells): the moments phi_k = Σ_n w_n Y_k(Ω_n) psi_n, the fluence
-// Σ_n w_n psi_n (W/m²), the flux Σ_n w_n Ω_n psi_n, and the power leaving through each
-// non-periodic domain face, Σ_faces h² Σ_{Ω·n>0} w_n |Ω·n| psi_face (W; face value = cell value
-// for the step scheme), order x-, x+, y-, y+, z-, z+; summed over ranks.
+// Σ_n w_n psi_n (W/m²), the flux Σ_n w_n Ω_n psi_n, and the NET power leaving through each
+// non-periodic domain face, Σ_faces h² Σ_n w_n |Ω·n| (psi_out,face - psi_in,face) (W; face
+// value = cell value for the step scheme, the outgoing face value for diamond; psi_in = 0 on
+// vacuum faces), order x-, x+, y-, y+, z-, z+; summed over ranks.
 //
 // Collective over d.comm(). Not thread-safe. The Decomposition and AngularSet must outlive it.
 #pragma once
@@ -45,6 +79,16 @@ struct SweepOutput {
     Field<double> fluence;  // 1 component
     Field<double> flux;     // 3 components
     std::array<double, 6> leakage{};
+    double min_psi = 0;     // smallest cell or face angular flux of the sweep, this rank
+};
+
+enum class SpatialScheme { step, diamond };
+
+// Domain-face boundary conditions, faces x-, x+, y-, y+, z-, z+ (periodic axes come from the
+// Decomposition). A face must not be reflective on a periodic axis.
+struct SweepBoundary {
+    std::array<bool, 6> reflective{};
+    bool sky = false;  // uniform incoming sky radiance on the top and side faces (see above)
 };
 
 struct SweepTiming {
@@ -53,19 +97,31 @@ struct SweepTiming {
     double moment_seconds = 0;    // moments to directions (source) and back (reduction)
     std::int64_t cell_directions = 0;  // cells x directions computed by this rank (incl. periodic passes)
     int periodic_passes = 0;      // extra layer passes of the periodic iteration
+    std::int64_t fixups = 0;      // diamond: cell-directions that needed the negative-flux fix-up
 };
 
 class TransportSweeper {
 public:
+    // Throws Error (same on every rank) when a reflective face is on a periodic axis or the
+    // quadrature lacks a mirrored direction. fixup = false: plain diamond (tests only).
     TransportSweeper(const Decomposition& d, const AngularSet& ang, double h,
-                     const sweep::SweepOptions& opt, double periodic_tolerance);
+                     const sweep::SweepOptions& opt, double periodic_tolerance,
+                     SpatialScheme scheme = SpatialScheme::step, const SweepBoundary& boundary = {},
+                     bool fixup = true);
     // Collective. out is (re)allocated on d.local() when needed and overwritten.
     void sweep(const SweepSource& src, SweepOutput& out);
     const SweepTiming& timing() const { return timing_; }
+    // Uniform sky radiance L (W/m²/sr) of the current band for SweepBoundary::sky.
+    void set_sky_radiance(double L) { sky_radiance_ = L; }
+    // Forgets the lagged reflected planes (zero), e.g. before a new band.
+    void reset_reflections();
 
 private:
     void set_upwind_ghosts(Field<double>& psi, int o);
-    void reduce_octant(const Field<double>& psi, int o, SweepOutput& out);
+    void store_reflected(const Field<double>& psi, int o);
+    void reduce_octant(const Field<double>& psi, int o, SweepOutput& out);  // leakage of octant o
+    int face_offset(int axis, int nd) const { return scheme_ == SpatialScheme::diamond ? (1 + axis) * nd : 0; }
+    std::ptrdiff_t plane_index(int axis, int i, int j, int k) const;
 
     const Decomposition& d_;
     const AngularSet& ang_;
@@ -76,7 +132,22 @@ private:
     std::map<int, Field<double>> psi_;                          // by octant size
     std::array<std::array<std::vector<double>, 4>, 8> coef_;    // cx, cy, cz, csum per octant
     std::vector<double> source_;  // one octant's source, cells x directions
+    // Octants in flight beyond the first (octant_overlap 2 or 8, slot q >= 1): psi and source.
+    std::vector<Field<double>> overlap_psi_;
+    std::vector<std::vector<double>> overlap_source_;
     SweepTiming timing_;
+    SpatialScheme scheme_;
+    SweepBoundary bc_;
+    bool fixup_;
+    double sky_radiance_ = 0.0;
+    bool sky_on_ = false;  // this sweep applies the sky radiance
+    // mirror_[a][o][n]: index in octant o ^ (1 << a) of direction n of octant o mirrored in axis
+    // a (-1 when |Ω_a| = 0: nothing enters along a).
+    std::array<std::array<std::vector<int>, 8>, 3> mirror_;
+    // reflected_[f][o]: outgoing face values of the boundary plane of face f (reflective, on
+    // this rank) for the octant o leaving through it, plane cells x nd.
+    std::array<std::array<std::vector<double>, 8>, 6> reflected_;
+    std::array<double, 6> incoming_{};  // power entering through each face in this sweep (W)
 };
 
 }  // namespace nimbus::dom

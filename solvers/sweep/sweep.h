@@ -24,7 +24,8 @@
 namespace nimbus::sweep {
 
 struct SweepOptions {
-    int tile_rows = 8;  // rows (along y) per pipelined tile across the z-slab face
+    int tile_rows = 8;       // rows (along y) per pipelined tile across the z-slab face
+    int octant_overlap = 1;  // octants a caller sweeps at once with run_octants (1: one by one)
 };
 
 struct SweepStats {
@@ -122,6 +123,164 @@ SweepStats run(const Decomposition& d, Field<double>& psi, const Octant& o, cons
     (void)ry;
     send_plane(0, own, out[static_cast<size_t>(ntiles)]);
     send_plane(1, own, out[static_cast<size_t>(ntiles) + 1]);
+    MPI_Waitall(static_cast<int>(sends.size()), sends.data(), MPI_STATUSES_IGNORE);
+    return stats;
+}
+
+// Several octants swept at once with data-driven scheduling (octant overlap: "octants
+// overlapped so the pipe stays full", DESIGN §3). Octant q has its own field psi[q] (>= 1 ghost
+// layer, any ncomp) and its own message tags, so a +z and a -z octant run concurrently from the
+// opposite ends of the slab chain, and the pipeline fill of one octant is covered by another's
+// work. Same tiles and the same per-octant cell order as run(), so every psi[q] equals what
+// run() gives for that octant alone, bit for bit.
+//
+// Scheduling: all upstream planes are pre-posted (MPI_Irecv); a rank repeatedly computes the
+// next tile of any octant whose upstream planes have arrived (MPI_Test), preferring octants it
+// feeds a downstream rank with (they keep the pipe full), then the lowest q; when none is ready
+// it blocks in MPI_Waitany (counted as wait time). Octants are independent: whatever order the
+// tiles run in, each octant's cells see their final upwind values (storage contract above).
+//
+// Collective over d.comm(): every rank passes the same octant list (at most kMaxOctants).
+// kernel(q, i, j, k) computes owned cell (i, j, k) of psi[q]. Ghost planes at the domain
+// boundary are the caller's, as in run(). Memory: the upstream and downstream planes of every
+// octant in flight (one slab face each way, x ncomp).
+constexpr int kMaxOctants = 8;
+
+template <class Kernel>
+SweepStats run_octants(const Decomposition& d, const std::vector<Field<double>*>& psi, const std::vector<Octant>& octants,
+                       const SweepOptions& opt, Kernel&& kernel) {
+    SweepStats stats;
+    const Box& own = d.local();
+    const int nq = static_cast<int>(octants.size());
+    constexpr int kTagBase = 900;  // octant q, axis a: kTagBase + 3 q + a (run() uses 811-813)
+    const int ny = own.size(1);
+    const int rows = (d.dims()[1] == 1) ? std::clamp(opt.tile_rows, 1, std::max(1, ny)) : std::max(1, ny);
+    const int ntiles = (ny + rows - 1) / rows;
+
+    struct State {
+        Field<double>* psi = nullptr;
+        Octant o;
+        Int3 up{}, down{};
+        int next = 0;                                  // next tile
+        MPI_Request face_req[2] = {MPI_REQUEST_NULL, MPI_REQUEST_NULL};  // whole x / y faces
+        std::vector<double> face_buf[2];
+        std::vector<MPI_Request> z_req;                // per tile
+        std::vector<std::vector<double>> z_buf;        // per tile
+        bool faces_unpacked = false;
+    };
+    std::vector<State> st(static_cast<size_t>(nq));
+    std::vector<MPI_Request> sends;
+    std::vector<std::vector<double>> out;  // send buffers, alive until the final Waitall
+    out.reserve(static_cast<size_t>(nq * (ntiles + 2)));
+
+    auto tile_box = [&](const Octant& o, int t) {
+        Box tile = own;
+        const int a = t * rows, b = std::min(ny, a + rows);
+        if (o.s[1] > 0) { tile.lo[1] = own.lo[1] + a; tile.hi[1] = own.lo[1] + b; }
+        else { tile.lo[1] = own.hi[1] - b; tile.hi[1] = own.hi[1] - a; }
+        return tile;
+    };
+    auto plane_of = [&](const Octant& o, int axis, const Box& r, bool upwind) {
+        Box p = r;
+        p.lo[axis] = upwind ? (o.s[axis] > 0 ? own.lo[axis] - 1 : own.hi[axis])
+                            : (o.s[axis] > 0 ? own.hi[axis] - 1 : own.lo[axis]);
+        p.hi[axis] = p.lo[axis] + 1;
+        return p;
+    };
+    // Pre-post every receive, in tile order (same source and tag: MPI keeps them in order).
+    for (int q = 0; q < nq; ++q) {
+        State& s = st[static_cast<size_t>(q)];
+        s.psi = psi[static_cast<size_t>(q)];
+        s.o = octants[static_cast<size_t>(q)];
+        for (int a = 0; a < 3; ++a) {
+            s.up[a] = d.periodic(a) ? MPI_PROC_NULL : d.neighbor(a, -s.o.s[a]);
+            s.down[a] = d.periodic(a) ? MPI_PROC_NULL : d.neighbor(a, s.o.s[a]);
+        }
+        const int nc = s.psi->ncomp();
+        for (int a = 0; a < 2; ++a) {
+            if (s.up[a] == MPI_PROC_NULL) continue;
+            auto& b = s.face_buf[a];
+            b.resize(static_cast<size_t>(plane_of(s.o, a, own, true).cells() * nc));
+            MPI_Irecv(b.data(), static_cast<int>(b.size()), MPI_DOUBLE, s.up[a], kTagBase + 3 * q + a, d.comm(),
+                      &s.face_req[a]);
+        }
+        s.z_req.assign(static_cast<size_t>(ntiles), MPI_REQUEST_NULL);
+        s.z_buf.resize(static_cast<size_t>(ntiles));
+        if (s.up[2] == MPI_PROC_NULL) continue;
+        for (int t = 0; t < ntiles; ++t) {
+            auto& b = s.z_buf[static_cast<size_t>(t)];
+            b.resize(static_cast<size_t>(plane_of(s.o, 2, tile_box(s.o, t), true).cells() * nc));
+            MPI_Irecv(b.data(), static_cast<int>(b.size()), MPI_DOUBLE, s.up[2], kTagBase + 3 * q + 2, d.comm(),
+                      &s.z_req[static_cast<size_t>(t)]);
+        }
+    }
+    // The request octant q's next tile still waits for (nullptr: ready).
+    auto pending = [&](State& s) -> MPI_Request* {
+        for (int a = 0; a < 2; ++a) {
+            int done = 0;
+            MPI_Test(&s.face_req[a], &done, MPI_STATUS_IGNORE);
+            if (!done) return &s.face_req[a];
+        }
+        MPI_Request* r = &s.z_req[static_cast<size_t>(s.next)];
+        int done = 0;
+        MPI_Test(r, &done, MPI_STATUS_IGNORE);
+        return done ? nullptr : r;
+    };
+    auto send = [&](State& s, int q, int axis, const Box& r) {
+        if (s.down[axis] == MPI_PROC_NULL) return;
+        out.emplace_back();
+        detail::copy_plane<true>(*s.psi, axis, plane_of(s.o, axis, r, false).lo[axis], r, out.back());
+        sends.emplace_back();
+        MPI_Isend(out.back().data(), static_cast<int>(out.back().size()), MPI_DOUBLE, s.down[axis],
+                  kTagBase + 3 * q + axis, d.comm(), &sends.back());
+    };
+    auto run_tile = [&](State& s, int q) {
+        if (!s.faces_unpacked) {
+            for (int a = 0; a < 2; ++a)
+                if (s.up[a] != MPI_PROC_NULL)
+                    detail::copy_plane<false>(*s.psi, a, plane_of(s.o, a, own, true).lo[a], own, s.face_buf[a]);
+            s.faces_unpacked = true;
+        }
+        const Box tile = tile_box(s.o, s.next);
+        if (s.up[2] != MPI_PROC_NULL)
+            detail::copy_plane<false>(*s.psi, 2, plane_of(s.o, 2, tile, true).lo[2], tile, s.z_buf[static_cast<size_t>(s.next)]);
+        const AxisRange rx = upwind_range(own, 0, s.o), ty = upwind_range(tile, 1, s.o), rz = upwind_range(own, 2, s.o);
+        for (int k = rz.first; k != rz.end; k += rz.step)
+            for (int j = ty.first; j != ty.end; j += ty.step)
+                for (int i = rx.first; i != rx.end; i += rx.step) kernel(q, i, j, k);
+        send(s, q, 2, tile);
+        ++stats.tiles;
+        if (++s.next == ntiles) {
+            send(s, q, 0, own);
+            send(s, q, 1, own);
+        }
+    };
+    std::vector<MPI_Request*> waiting;
+    std::vector<MPI_Request> wait_req;
+    for (int left = nq * ntiles; left > 0;) {
+        int pick = -1;
+        waiting.clear();
+        for (int pass = 0; pass < 2 && pick < 0; ++pass)
+            for (int q = 0; q < nq && pick < 0; ++q) {
+                State& s = st[static_cast<size_t>(q)];
+                if (s.next == ntiles || (pass == 0) != (s.down[2] != MPI_PROC_NULL)) continue;
+                MPI_Request* r = pending(s);
+                if (r == nullptr) pick = q;
+                else waiting.push_back(r);
+            }
+        if (pick >= 0) {
+            run_tile(st[static_cast<size_t>(pick)], pick);
+            --left;
+            continue;
+        }
+        wait_req.clear();
+        for (MPI_Request* r : waiting) wait_req.push_back(*r);
+        int idx = MPI_UNDEFINED;
+        const double t0 = MPI_Wtime();
+        MPI_Waitany(static_cast<int>(wait_req.size()), wait_req.data(), &idx, MPI_STATUS_IGNORE);
+        stats.wait_seconds += MPI_Wtime() - t0;
+        if (idx != MPI_UNDEFINED) *waiting[static_cast<size_t>(idx)] = MPI_REQUEST_NULL;
+    }
     MPI_Waitall(static_cast<int>(sends.size()), sends.data(), MPI_STATUSES_IGNORE);
     return stats;
 }

@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+
 #include "src/core/error.h"
 
 namespace nimbus {
@@ -42,11 +44,28 @@ void DomOptions::validate() const {
     if (legendre_order < 0) throw Error("model.dom.legendre_order must be >= 0");
     if (scheme != "step" && scheme != "diamond")
         throw Error(fmt::format("model.dom.scheme = '{}': allowed are step, diamond", scheme));
-    if (iteration != "source" && iteration != "dsa" && iteration != "gmres")
-        throw Error(fmt::format("model.dom.iteration = '{}': allowed are source, dsa, gmres", iteration));
+    if (iteration != "source" && iteration != "dsa" && iteration != "gmres" && iteration != "gmres-plain")
+        throw Error(fmt::format("model.dom.iteration = '{}': allowed are source, dsa, gmres, gmres-plain", iteration));
     if (tolerance <= 0 || tolerance >= 1) throw Error("model.dom.tolerance must be in (0, 1)");
     if (max_iterations < 1) throw Error("model.dom.max_iterations must be >= 1");
     if (tile_rows < 1) throw Error("model.dom.tile_rows must be >= 1");
+    if (octant_overlap != 1 && octant_overlap != 2 && octant_overlap != 8)
+        throw Error(fmt::format("model.dom.octant_overlap = {}: allowed are 1, 2, 8", octant_overlap));
+    const std::vector<std::string> faces = {"x-", "x+", "y-", "y+", "z-", "z+"};
+    for (size_t i = 0; i < reflective.size(); ++i) {
+        if (std::find(faces.begin(), faces.end(), reflective[i]) == faces.end())
+            throw Error(fmt::format("model.dom.reflective: '{}' is not a face (allowed: x-, x+, y-, y+, z-, z+)", reflective[i]));
+        if (std::find(reflective.begin(), reflective.begin() + static_cast<std::ptrdiff_t>(i), reflective[i]) !=
+            reflective.begin() + static_cast<std::ptrdiff_t>(i))
+            throw Error(fmt::format("model.dom.reflective: face '{}' is listed twice", reflective[i]));
+        // A high face reflects the previous sweep's outgoing light (solvers/dom/transport_sweep.h):
+        // fine inside source/DSA iteration, but not a fixed linear operator for GMRES.
+        if (reflective[i].back() == '+' && iteration.rfind("gmres", 0) == 0)
+            throw Error(fmt::format("model.dom.reflective = '{}' (a high face) needs iteration = source or dsa, not {}",
+                                    reflective[i], iteration));
+    }
+    if (sky != "first-collision" && sky != "boundary")
+        throw Error(fmt::format("model.dom.sky = '{}': allowed are first-collision, boundary", sky));
 }
 
 void LpmOptions::validate() const {

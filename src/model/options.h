@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace nimbus {
 
@@ -47,10 +48,13 @@ struct DomOptions {
     int legendre_order = 3;         // L: HG expanded in Legendre moments 0..L (delta-M f = chi_{L+1})
     bool delta_m = true;            // delta-M scaling of the truncated phase function (Wiscombe 1977)
     std::string scheme = "step";    // step | diamond (with negative-flux fix-up)
-    std::string iteration = "dsa";  // source | dsa | gmres
+    std::string iteration = "dsa";  // source | dsa | gmres (DSA-preconditioned) | gmres-plain
     double tolerance = 1e-4;        // relative change / residual of the scalar flux
     int max_iterations = 500;
     int tile_rows = 8;              // KBA block rows across the slab face
+    int octant_overlap = 8;         // octants swept at once: 1, 2 (+z/-z pairs) or 8 (solvers/dom/transport_sweep.h)
+    std::vector<std::string> reflective;  // specular domain faces: any of x-, x+, y-, y+, z-, z+
+    std::string sky = "first-collision";  // first-collision | boundary (sky radiance enters at the faces)
     void validate() const;
 };
 
