@@ -82,22 +82,28 @@ def plot(rows, path):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
     scenes = sorted({r["scene"] for r in rows})
     labels = sorted({r["model"] for r in rows})
     markers = "osD^v<>pXh*"
-    fig, axes = plt.subplots(1, len(scenes), figsize=(5 * len(scenes), 4), squeeze=False)
+    colors = plt.get_cmap("tab20").colors
+    # One marker and colour per model across every panel, one legend beside the panels.
+    style = {label: (markers[i % len(markers)], colors[i % len(colors)]) for i, label in enumerate(labels)}
+    fig, axes = plt.subplots(1, len(scenes), figsize=(5 * len(scenes) + 2, 4), squeeze=False)
     for ax, scene in zip(axes[0], scenes):
-        for i, label in enumerate(labels):
+        for label in labels:
             pts = [(r["wall_s"], r["rel_l2"]) for r in rows if r["scene"] == scene and r["model"] == label and r["rel_l2"] > 0]
             if pts:
-                ax.loglog(*zip(*pts), markers[i % len(markers)], label=label, markersize=8)
+                m, c = style[label]
+                ax.loglog(*zip(*pts), m, color=c, markersize=8)
         ax.set_title(os.path.basename(scene))
         ax.set_xlabel("wall time (s)")
         ax.set_ylabel("relative L2 error of fluence_diffuse")
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8)
-    fig.tight_layout()
+    handles = [Line2D([], [], linestyle="", marker=style[l][0], color=style[l][1], markersize=8) for l in labels]
+    fig.legend(handles, labels, loc="center right", fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0, 1 - 1.6 / (5 * len(scenes) + 2), 1))
     fig.savefig(path, dpi=120)
 
 
