@@ -1,11 +1,13 @@
 // Plane-parallel slab (periodic 4 x 4 x nz) of optical thickness 1, albedo 0.9, lit by a
 // collimated beam at mu0 = 0.8: reflection, diffuse transmission and the interior diffuse
 // fluence against the independent doubling-adding reference (tests/support/slab_reference.h),
-// isotropic and HG g = 0.85 (delta-M). Tolerances are set from the measured discretization
+// isotropic and HG g = 0.85 and 0.95 (delta-M). Tolerances are set from the measured discretization
 // error (step scheme O(h), angular O(N)); the refinement that reduces them is checked too.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
+#include <utility>
 
 #include "solvers/dom/dom.h"
 #include "tests/support/mpi_test.h"
@@ -46,7 +48,11 @@ SlabErrors run_slab(double g, int nz, int order, int L, const char* method = "ds
     sp.g = g;
     sp.mu0 = mu0;
     sp.profile_levels = 2 * nz;
-    const test::SlabSolution ref = test::solve_slab(sp);
+    // The reference is costly at g = 0.95 (many Legendre terms): solved once per (g, nz).
+    static std::map<std::pair<double, int>, test::SlabSolution> cache;
+    const auto key = std::make_pair(g, nz);
+    if (cache.find(key) == cache.end()) cache.emplace(key, test::solve_slab(sp));
+    const test::SlabSolution& ref = cache.at(key);
     e.R_ref = ref.reflected;
     e.T_ref = ref.transmitted_diffuse;
     for_each_cell(w.d.local(), [&](int i, int j, int k) {
@@ -76,6 +82,17 @@ TEST(DomSlab, IsotropicMatchesReference) {
     EXPECT_LT(f.fluence, 0.03);
     EXPECT_LT(f.fluence, 0.5 * c.fluence);
     EXPECT_LT(std::abs(f.R - f.R_ref), std::abs(c.R - c.R_ref));
+}
+
+// The issue's hard case g = 0.95 (delta-M keeps f = g^(L+1) in the forward peak: 0.54 at L 11).
+// Measured: S8 L=7: R err +1.37e-3, T err +1.0e-4, fluence 2.0e-2 (12 DSA iterations);
+//           S12 L=11: R err -1.05e-4, T err -3.6e-5, fluence 8.4e-3 (16 iterations).
+TEST(DomSlab, StronglyForwardPeakedHgMatchesReference) {
+    const SlabErrors c = run_slab(0.95, 64, 8, 7), f = run_slab(0.95, 64, 12, 11);
+    EXPECT_LT(std::abs(f.R - f.R_ref), 1e-3);
+    EXPECT_LT(std::abs(f.T - f.T_ref), 1e-3);
+    EXPECT_LT(f.fluence, 0.017);
+    EXPECT_LT(f.fluence, c.fluence);
 }
 
 TEST(DomSlab, ForwardPeakedHgMatchesReference) {
