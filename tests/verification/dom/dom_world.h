@@ -3,6 +3,9 @@
 // context, on a given communicator.
 #pragma once
 
+#include <mpi.h>
+
+#include <algorithm>
 #include <cmath>
 
 #include "src/model/model.h"
@@ -39,5 +42,23 @@ struct DomWorld {
     }
     SolveContext ctx() { return {scene, d, m, light, report}; }
 };
+
+// Decomposition-invariance check: the largest |a - b| of band 0's fluence and flux over the
+// cells of d (max over d.comm()), and the peak of b's fluence. Collective over d.comm().
+struct SolutionDifference {
+    double diff = 0.0, peak = 0.0;
+};
+inline SolutionDifference solution_difference(const Decomposition& d, const DiffuseSolution& a,
+                                              const DiffuseSolution& b) {
+    SolutionDifference r;
+    for_each_cell(d.local(), [&](int i, int j, int k) {
+        r.diff = std::max(r.diff, std::abs(a.fluence[0](i, j, k) - b.fluence[0](i, j, k)));
+        for (int c = 0; c < 3; ++c) r.diff = std::max(r.diff, std::abs(a.flux[0](i, j, k, c) - b.flux[0](i, j, k, c)));
+        r.peak = std::max(r.peak, b.fluence[0](i, j, k));
+    });
+    MPI_Allreduce(MPI_IN_PLACE, &r.diff, 1, MPI_DOUBLE, MPI_MAX, d.comm());
+    MPI_Allreduce(MPI_IN_PLACE, &r.peak, 1, MPI_DOUBLE, MPI_MAX, d.comm());
+    return r;
+}
 
 }  // namespace nimbus::test

@@ -51,14 +51,7 @@ TEST(DomIteration, OneAndTwoRanksAgreeToTheTolerance) {
         DiffuseSolution a, b;
         make_dom_model(o)->solve(world.ctx(), a);
         make_dom_model(o)->solve(self.ctx(), b);
-        double diff = 0.0, peak = 0.0;
-        for_each_cell(world.d.local(), [&](int i, int j, int k) {
-            diff = std::max(diff, std::abs(a.fluence[0](i, j, k) - b.fluence[0](i, j, k)));
-            for (int c = 0; c < 3; ++c) diff = std::max(diff, std::abs(a.flux[0](i, j, k, c) - b.flux[0](i, j, k, c)));
-            peak = std::max(peak, b.fluence[0](i, j, k));
-        });
-        MPI_Allreduce(MPI_IN_PLACE, &diff, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
-        MPI_Allreduce(MPI_IN_PLACE, &peak, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+        const auto [diff, peak] = test::solution_difference(world.d, a, b);
         if (test::world_rank() == 0)
             std::printf("%s, 1 vs %d ranks: max diff %.3e of peak %.4f\n", method, test::world_size(), diff, peak);
         EXPECT_GT(peak, 0.0);

@@ -260,14 +260,7 @@ double rank_difference(DomOptions o, double sky) {
     DiffuseSolution a, b;
     make_dom_model(o)->solve(world.ctx(), a);
     make_dom_model(o)->solve(self.ctx(), b);
-    double diff = 0.0, peak = 0.0;
-    for_each_cell(world.d.local(), [&](int i, int j, int k) {
-        diff = std::max(diff, std::abs(a.fluence[0](i, j, k) - b.fluence[0](i, j, k)));
-        for (int c = 0; c < 3; ++c) diff = std::max(diff, std::abs(a.flux[0](i, j, k, c) - b.flux[0](i, j, k, c)));
-        peak = std::max(peak, b.fluence[0](i, j, k));
-    });
-    diff = all_max(diff);
-    peak = all_max(peak);
+    const auto [diff, peak] = test::solution_difference(world.d, a, b);
     if (test::world_rank() == 0)
         std::printf("1 vs %d ranks, diamond%s: max diff %.3e of peak %.4f (%d iterations)\n", test::world_size(),
                     sky > 0 ? " + reflective z-, x+ + sky boundary" : "", diff, peak,
