@@ -47,8 +47,9 @@ struct VolumeEmitter {
     // Power of band b over all emitting cells, W.
     double total_power(int b) const { return power[static_cast<size_t>(b)] * volume; }
 
-    // Start state of one photon; walk_origin is the walked box's lowest domain cell (grid_walk.h).
-    void sample(PathRng& rng, PathState& s, const std::array<int, 3>& walk_origin) const {
+    // Start state of one photon in the walked grid (grid_walk.h; its origin is the walked box's
+    // lowest domain cell).
+    [[gnu::always_inline]] void sample(PathRng& rng, const GridView& grid, PathState& s) const {
         const auto nlive = static_cast<std::int64_t>(live.size());
         const std::int64_t pick = std::min(
             static_cast<std::int64_t>(rng.uniform() * static_cast<double>(nlive)), nlive - 1);
@@ -56,11 +57,13 @@ struct VolumeEmitter {
         const Int3 m = cells.shape();
         const std::int64_t rel[3] = {c % m[0], (c / m[0]) % m[1],
                                      c / (static_cast<std::int64_t>(m[0]) * m[1])};
+        std::array<int, 3> cell{};
         for (int a = 0; a < 3; ++a) {
-            s.cell[static_cast<size_t>(a)] =
-                cells.lo[a] + static_cast<int>(rel[a]) - walk_origin[static_cast<size_t>(a)];
+            cell[static_cast<size_t>(a)] =
+                cells.lo[a] + static_cast<int>(rel[a]) - grid.origin[static_cast<size_t>(a)];
             s.frac[static_cast<size_t>(a)] = rng.uniform();
         }
+        s.idx = grid.index(cell);
         const double mu = 1.0 - 2.0 * rng.uniform();
         double cos_phi, sin_phi;
         sincos_2pi(rng.uniform(), cos_phi, sin_phi);

@@ -6,12 +6,12 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
-#include <type_traits>
 
 #include "solvers/montecarlo/emitter.h"
 #include "solvers/montecarlo/empty_space.h"
 #include "solvers/montecarlo/grid_walk.h"
 #include "solvers/montecarlo/photon.h"
+#include "solvers/montecarlo/trace_light.h"
 #include "src/core/error.h"
 #include "src/core/gather.h"
 #include "src/core/halo.h"
@@ -106,14 +106,14 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     for (const OpticsGroup& g : groups)
         if (g.bands.size() > 64) throw Error("Monte Carlo supports at most 64 bands with equal optics");
 
-    // Memory of the replicated arrays, per rank: density (gathered + global), kappa and the
-    // empty-space distance per group,
+    // Memory of the replicated arrays, per rank: density (gathered + global), the 16-byte voxels
+    // (kappa, empty-space distance, light accumulator) per group,
     // per band the batch tally and its running sum and sum of squares, and the reduce buffer;
     // the emitting-cell lists of the volume sources (at most 4 bytes per covered cell).
     double source_cells = 0.0;
     for (const VolumeSource& src : sources) source_cells += static_cast<double>(src.cells.cells());
     const double bytes = static_cast<double>(cells) *
-                         (16.0 + 5.0 * static_cast<double>(groups.size()) + 8.0 * nb * (nq / 2) * 3 + 8.0 * nb * nq + 12.0) +
+                         (16.0 + 16.0 * static_cast<double>(groups.size()) + 8.0 * nb * (nq / 2) * 3 + 8.0 * nb * nq + 12.0) +
                          4.0 * source_cells;
     ForwardResult res;
     res.replicated_gb = bytes / 1e9;
@@ -205,9 +205,10 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     // (every tallied segment adds a positive amount there; a repeated entry folds 0, harmlessly).
     size_t max_group = 1;
     for (const OpticsGroup& G : groups) max_group = std::max(max_group, G.bands.size());
-    std::vector<double> tally(static_cast<size_t>(pcells) * max_group, 0.0), rtally;
-    if (settings.tally_reduced) rtally.assign(tally.size(), 0.0);
-    std::vector<std::int64_t> touched;
+    std::vector<double> tally(static_cast<size_t>(pcells) * max_group, 0.0), rtally, reduced_acc;
+    if (settings.tally_reduced) rtally.assign(tally.size(), 0.0), reduced_acc.assign(static_cast<size_t>(pcells), 0.0);
+    std::vector<std::int64_t> touched, light_touched;  // cells tallied in this batch / by this light
+    light_touched.reserve(static_cast<size_t>(std::min<std::int64_t>(cells, 1 << 20)));
     touched.reserve(static_cast<size_t>(std::min<std::int64_t>(cells, 1 << 20)));
     const double t_setup = wall_time();
 
@@ -225,7 +226,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                 if (hi <= lo) continue;
                 // Photon power per band (W) in this batch's estimate, and the fluence scale
                 // P len(m) / V = P len(cells) / h².
-                double P[64], scale[64];
+                double P[64]{}, scale[64]{};
                 int strongest = 0;
                 for (int q = 0; q < nbg; ++q) {
                     const int band = G.bands[static_cast<size_t>(q)];
@@ -238,41 +239,32 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                     if (gi == 0) my_photons += hi - lo;
                     continue;
                 }
+                // Trace (trace_light.h: w len accumulated per voxel), then fold the light's
+                // accumulators into the per-band batch tally (x P/h² per band) and zero them.
                 PathTally pt;
-                double* t = tally.data();
-                double* rt = rtally.data();
-                // The photons of this light; NB > 0 fixes the band count at compile time (the
-                // per-segment tally is the inner loop), NB = 0 takes it from nbg.
-                auto trace_light = [&]<int NB>(std::integral_constant<int, NB>) {
-                    const int nq_bands = NB > 0 ? NB : nbg;
-                    auto add = [&](double* c, std::int64_t idx, double len) {
+                light_touched.clear();
+                const LightTerm term{emitter ? nullptr : &entry[l], emitter ? Vec3{0, 0, -1} : lights[l].w, emitter,
+                                     static_cast<std::uint32_t>(l)};
+                trace_photons(grid, po, term, opt.seed, lo, hi, settings.forced_first_collision,
+                              settings.tally_reduced ? reduced_acc.data() : nullptr, light_touched, pt);
+                double diffuse_track = 0.0;  // sum of w len (cells) after the first scattering
+                for (const std::int64_t idx : light_touched) {
+                    const double v = grid.voxel[idx].tally;
+                    grid.voxel[idx].tally = 0.0;
+                    diffuse_track += v;
+                    if (v != 0.0) {
+                        double* c = tally.data() + idx * nbg;
                         if (c[strongest] == 0.0) touched.push_back(idx);
-                        for (int q = 0; q < nq_bands; ++q) c[q] += len * scale[q];
-                    };
-                    auto diffuse = [&](std::int64_t idx, double wl) { add(t + idx * nq_bands, idx, wl); };
-                    for (std::int64_t p = lo; p < hi; ++p) {
-                        PathRng rng(opt.seed, static_cast<std::uint32_t>(l), static_cast<std::uint64_t>(p));
-                        PathState s;
-                        if (emitter) {
-                            emitter->sample(rng, s, box_lo);
-                            trace_emitted_photon(grid, po, rng, s, pt, diffuse);
-                            continue;
-                        }
-                        s.d = lights[l].w;
-                        entry[l].sample(rng, s);
-                        if (settings.tally_reduced) {
-                            trace_photon<true>(grid, po, rng, s, pt, diffuse,
-                                               [&](std::int64_t idx, double track) { add(rt + idx * nq_bands, idx, track); },
-                                               settings.forced_first_collision);
-                        } else {
-                            trace_photon(grid, po, rng, s, pt, diffuse, [](std::int64_t, double) {},
-                                         settings.forced_first_collision);
-                        }
+                        for (int q = 0; q < nbg; ++q) c[q] += v * scale[q];
                     }
-                };
-                if (nbg == 1) trace_light(std::integral_constant<int, 1>{});
-                else if (nbg == 3) trace_light(std::integral_constant<int, 3>{});
-                else trace_light(std::integral_constant<int, 0>{});
+                    if (settings.tally_reduced && reduced_acc[static_cast<size_t>(idx)] != 0.0) {
+                        const double r = reduced_acc[static_cast<size_t>(idx)];
+                        reduced_acc[static_cast<size_t>(idx)] = 0.0;
+                        double* c = rtally.data() + idx * nbg;
+                        if (c[strongest] == 0.0) touched.push_back(idx);
+                        for (int q = 0; q < nbg; ++q) c[q] += r * scale[q];
+                    }
+                }
                 if (gi == 0) my_photons += hi - lo;  // a photon traced once per optics group
                 my_collisions += pt.collisions;
                 for (int q = 0; q < nbg; ++q) {
@@ -288,7 +280,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                     c[escaped_direct] += P[q] * pt.escaped_direct;
                     for (int f = 0; f < 6; ++f) c[escaped_xlo + f] += P[q] * pt.escaped_diffuse[f];
                     c[roulette_net] += P[q] * pt.roulette_net;
-                    c[diffuse_volume] += P[q] * pt.diffuse_track * h;
+                    c[diffuse_volume] += P[q] * diffuse_track * h;
                 }
             }
             const int* band = G.bands.data();

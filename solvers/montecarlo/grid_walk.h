@@ -2,12 +2,14 @@
 // are in cell edges (h = 1), extinction kappa in 1/cell (kappa_cells = rho sigma_t h). Between
 // calls a path state is a cell plus the position inside it as fractions in [0, 1]^3, so
 // rounding never accumulates from one flight to the next (each call restarts the DDA from the
-// fractions), and periodic x/y wrap by changing the cell index only. Pure kernels: no MPI, no
-// allocation, header-only.
+// fractions), and periodic x/y wrap by changing the cell index only. The cell is kept as its
+// index into the padded grid (GridView::index), so a flight needs no division to find where it
+// ended (cell_of, two 64-bit divisions, runs only when a path leaves the grid). Pure kernels: no
+// MPI, no allocation, header-only.
 //
 // Within one call the walk is the incremental DDA of Amanatides & Woo (1987): t_next[a] is the
 // distance along the ray to the next cell face on axis a and grows by 1/|d_a| per crossing, so
-// a cell step costs an argmin of three values (selects, no branches), one add and one index
+// a cell step costs an argmin of three values, one add and one index
 // step: no division, no per-axis fractions, no cell coordinates (recovered from the index when
 // the flight ends).
 //
@@ -17,10 +19,12 @@
 // whole cube in one step (in t, like a unit step). Segments in empty cells (kappa = 0) are not
 // reported: nothing scatters there, and the fluence of empty cells is not estimated (it stays 0).
 //
-// Layout: kappa and skip are interleaved in one 8-byte Voxel so that a cell step reads one
-// cache line, and the grid carries one ghost layer (skip = outside_skip) around it, so a unit
-// step needs no bounds test: stepping onto a ghost is the rare "left the grid" case. Cell
-// indices (GridView::index, the idx of on_segment) are indices into this padded array.
+// Layout: kappa, skip and the caller's track-length accumulator are interleaved in one 16-byte
+// Voxel so that a cell step, and the tally of its segment, touch one cache line (the grid does
+// not fit in L2 on the default cloud; the tally used to be a second miss per step), and the grid
+// carries one ghost layer (skip = outside_skip) around it, so a unit step needs no bounds test:
+// stepping onto a ghost is the rare "left the grid" case. Cell indices (GridView::index, the idx
+// of on_segment) are indices into this padded array.
 #pragma once
 
 #include <algorithm>
@@ -30,6 +34,7 @@
 #include <limits>
 #include <vector>
 
+#include "src/core/huge_pages.h"
 #include "src/core/vec3.h"
 
 namespace nimbus::mc {
@@ -40,8 +45,9 @@ static_assert(std::numeric_limits<double>::is_iec559, "the walk relies on IEEE d
 struct Voxel {
     float kappa = 0.0f;       // extinction, 1/cell
     std::uint32_t skip = 0;   // chessboard distance to the nearest non-empty cell (0 if non-empty)
+    double tally = 0.0;       // the caller's accumulator (forward.cpp: w len of the current light)
 };
-static_assert(sizeof(Voxel) == 8);
+static_assert(sizeof(Voxel) == 16);
 
 // skip of the ghost layer around the domain.
 inline constexpr std::uint32_t outside_skip = 0xFFFFFFFFu;
@@ -53,7 +59,8 @@ inline constexpr std::uint32_t outside_skip = 0xFFFFFFFFu;
 struct GridView {
     std::array<int, 3> n{0, 0, 0};   // cells of the walked box
     std::array<bool, 3> periodic{false, false, false};
-    const Voxel* voxel = nullptr;  // (n0+2)(n1+2)(n2+2) values, x fastest, ghost layer included (not owned)
+    Voxel* voxel = nullptr;  // (n0+2)(n1+2)(n2+2) values, x fastest, ghost layer included (not owned;
+                             // the walk only reads it, the caller may tally into Voxel::tally)
     std::array<int, 3> origin{0, 0, 0};  // the box's lowest cell in domain cells
     std::array<int, 3> domain{0, 0, 0};  // the domain's cells (= n when the box is the domain)
     // Index of cell c (domain cells 0..n-1 per axis; -1 and n are the ghost layer).
@@ -66,14 +73,14 @@ struct GridView {
 // Owns the padded voxel array of one optics group (see make_voxels in empty_space.h).
 struct VoxelGrid {
     std::array<int, 3> n{0, 0, 0};
-    std::vector<Voxel> voxel;  // padded, as GridView::voxel
+    std::vector<Voxel, HugePageAllocator<Voxel>> voxel;  // padded, as GridView::voxel
     std::array<int, 3> origin{0, 0, 0}, domain{0, 0, 0};  // as GridView
     std::int64_t padded_cells() const { return static_cast<std::int64_t>(voxel.size()); }
-    GridView view(const std::array<bool, 3>& periodic) const { return {n, periodic, voxel.data(), origin, domain}; }
+    GridView view(const std::array<bool, 3>& periodic) { return {n, periodic, voxel.data(), origin, domain}; }
 };
 
 struct PathState {
-    std::array<int, 3> cell{0, 0, 0};      // in the walked box (GridView::n)
+    std::int64_t idx = 0;                  // the cell: GridView::index of its cell in the walked box
     std::array<double, 3> frac{0, 0, 0};  // position inside the cell, [0, 1] per axis
     Vec3 d{0, 0, 1};                       // unit direction
 };
@@ -88,15 +95,17 @@ inline int floor_to_int(double q) {
 }
 
 // The domain face that the straight path from s (on face `axis` of the walked box, leaving it)
-// leaves the domain through: the first non-periodic face along s.d (ties keep `axis`).
-inline int domain_exit_face(const GridView& g, const PathState& s, const double inv[3], int axis) {
+// leaves the domain through: the first non-periodic face along s.d (ties keep `axis`); `cell`
+// is s's cell (cell_of(g, s.idx)).
+inline int domain_exit_face(const GridView& g, const PathState& s, const std::array<int, 3>& cell,
+                            const double inv[3], int axis) {
     const double dir[3] = {s.d.x, s.d.y, s.d.z};
     int best = axis;
     double t_best = std::numeric_limits<double>::infinity();
     for (int a = -1; a < 3; ++a) {
         const int b = a < 0 ? axis : a;  // the box's exit axis first, so that it wins ties
         if ((a >= 0 && b == axis) || g.periodic[b] || dir[b] == 0) continue;
-        const double x = g.origin[b] + s.cell[b] + s.frac[b];
+        const double x = g.origin[b] + cell[b] + s.frac[b];
         const double t = (dir[b] > 0 ? g.domain[b] - x : x) * inv[b];
         if (t < t_best) t_best = t, best = b;
     }
@@ -117,7 +126,7 @@ inline std::array<int, 3> cell_of(const GridView& g, std::int64_t idx) {
 // the length in cells, for cells with kappa > 0; the sum of kappa * length over the calls
 // equals the optical depth travelled (Beer-Lambert along a piecewise-constant medium).
 template <class OnSegment>
-inline int walk_optical_depth(const GridView& g, PathState& s, double tau, OnSegment&& on_segment) {
+[[gnu::always_inline]] inline int walk_optical_depth(const GridView& g, PathState& s, double tau, OnSegment&& on_segment) {
     constexpr double inf = std::numeric_limits<double>::infinity();
     const double dir[3] = {s.d.x, s.d.y, s.d.z};
     const double adir[3] = {std::abs(dir[0]), std::abs(dir[1]), std::abs(dir[2])};
@@ -147,7 +156,7 @@ inline int walk_optical_depth(const GridView& g, PathState& s, double tau, OnSeg
     restart();
     double t = 0.0;
     int last = 0;  // axis of the last unit step
-    std::int64_t idx = g.index(s.cell);
+    std::int64_t idx = s.idx;
     for (;;) {
         // Unit steps, the hot loop: t_next in registers, the cell known only by its index.
         Voxel v;
@@ -156,7 +165,9 @@ inline int walk_optical_depth(const GridView& g, PathState& s, double tau, OnSeg
             for (;;) {
                 v = g.voxel[idx];
                 if (v.skip > 1) [[unlikely]] break;
-                // argmin of t_next with selects; ties go to the higher axis.
+                // argmin of t_next; ties go to the higher axis. (Bitwise selects instead of the
+                // compare-and-jump the compiler emits were 20% slower on the default cloud: the
+                // jumps predict well enough, and the selects lengthen the step's dependency chain.)
                 const bool y_le_x = !(tx < ty);
                 const double m01 = y_le_x ? ty : tx;
                 const bool z_le = !(m01 < tz);
@@ -170,7 +181,7 @@ inline int walk_optical_depth(const GridView& g, PathState& s, double tau, OnSeg
                         const double len = tau / kappa;
                         on_segment(idx, len);
                         t_next[0] = tx, t_next[1] = ty, t_next[2] = tz;
-                        s.cell = cell_of(g, idx);
+                        s.idx = idx;
                         set_frac(t + len);
                         return -1;
                     }
@@ -189,16 +200,14 @@ inline int walk_optical_depth(const GridView& g, PathState& s, double tau, OnSeg
         }
         if (v.skip == outside_skip) {
             // The last unit step crossed the face of the grid on axis `last`: leave or wrap.
-            s.cell = cell_of(g, idx);
             const int a = last;
             if (!g.periodic[a]) {
-                s.cell[a] -= step[a];
+                s.idx = idx - dstep[a];  // back to the last cell inside
                 set_frac(t);
                 s.frac[a] = step[a] > 0 ? 1.0 : 0.0;
-                return domain_exit_face(g, s, inv, a);
+                return domain_exit_face(g, s, cell_of(g, s.idx), inv, a);
             }
-            s.cell[a] = step[a] > 0 ? 0 : g.n[a] - 1;
-            idx = g.index(s.cell);
+            idx -= step[a] * g.n[a] * stride[a];  // the same row's cell on the far side
             continue;
         }
         // Across the empty cube of half-width e = skip - 1 around this cell in one step, in

@@ -29,7 +29,8 @@ double optical_depth(const GridView& g, PathState s) {
 }
 
 // Where the world ray x + t d first meets the domain box (grid units); false if it misses.
-bool enter_domain(const Grid& grid, const Vec3& x, const Vec3& d, PathState& s) {
+// g walks the whole domain (its box is the domain).
+bool enter_domain(const Grid& grid, const GridView& g, const Vec3& x, const Vec3& d, PathState& s) {
     double t0 = 0.0, t1 = std::numeric_limits<double>::infinity();
     const Vec3 lo = grid.origin, hi = grid.upper();
     for (int a = 0; a < 3; ++a) {
@@ -44,11 +45,13 @@ bool enter_domain(const Grid& grid, const Vec3& x, const Vec3& d, PathState& s) 
     }
     if (t0 >= t1) return false;
     const Vec3 p = x + d * t0;
+    std::array<int, 3> cell{};
     for (int a = 0; a < 3; ++a) {
         const double u = std::clamp((p[a] - lo[a]) / grid.h, 0.0, static_cast<double>(grid.n[a]));
-        s.cell[a] = std::min(static_cast<int>(u), grid.n[a] - 1);
-        s.frac[a] = std::clamp(u - s.cell[a], 0.0, 1.0);
+        cell[a] = std::min(static_cast<int>(u), grid.n[a] - 1);
+        s.frac[a] = std::clamp(u - cell[a], 0.0, 1.0);
     }
+    s.idx = g.index(cell);
     s.d = d;
     return true;
 }
@@ -88,8 +91,9 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
         if (pix != last_pixel && si % spp == 0) {
             // alpha once per pixel, on the rank that owns its first sample
             PathState s;
-            const double T = enter_domain(m.grid, cam.position(), cam.pixel_direction(px, py), s)
-                                 ? std::exp(-optical_depth(voxels[0].view(periodic), s))
+            const GridView g0 = voxels[0].view(periodic);
+            const double T = enter_domain(m.grid, g0, cam.position(), cam.pixel_direction(px, py), s)
+                                 ? std::exp(-optical_depth(g0, s))
                                  : 1.0;
             alpha[pix] = 1.0 - T;
         }
@@ -101,7 +105,7 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
             const Vec3 dir = cam.direction(px + rng.uniform(), py + rng.uniform());
             double L = 0.0;
             PathState s;
-            if (!enter_domain(m.grid, cam.position(), dir, s)) {
+            if (!enter_domain(m.grid, g, cam.position(), dir, s)) {
                 L = ground ? 0.0 : band_value(scene.background.color, b);
             } else {
                 double beta = 1.0;

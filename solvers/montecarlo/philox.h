@@ -14,7 +14,7 @@ using Philox4x32 = std::array<std::uint32_t, 4>;
 
 // One Philox-4x32-10 block: 10 rounds of the multiply-xor bijection keyed by `key`.
 // Matches Random123's known-answer vectors (tested).
-inline Philox4x32 philox4x32_10(Philox4x32 ctr, std::array<std::uint32_t, 2> key) {
+[[gnu::always_inline]] inline Philox4x32 philox4x32_10(Philox4x32 ctr, std::array<std::uint32_t, 2> key) {
     constexpr std::uint64_t M0 = 0xD2511F53u, M1 = 0xCD9E8D57u;
     constexpr std::uint32_t W0 = 0x9E3779B9u, W1 = 0xBB67AE85u;
     for (int round = 0; round < 10; ++round) {
@@ -30,26 +30,33 @@ inline Philox4x32 philox4x32_10(Philox4x32 ctr, std::array<std::uint32_t, 2> key
 
 // The random stream of one path: key = seed, counter = (draw block, index lo, index hi, stream).
 // uniform() returns doubles in the open interval (0, 1) with 32 random bits.
+// The block after the current one is computed when the current one is taken into use, so its
+// ~50-cycle dependency chain runs while the path uses the current four numbers instead of
+// stalling the path when they run out (the sequence is the same).
 class PathRng {
 public:
     PathRng(std::uint64_t seed, std::uint32_t stream, std::uint64_t index)
         : key_{static_cast<std::uint32_t>(seed), static_cast<std::uint32_t>(seed >> 32)},
-          ctr_{0u, static_cast<std::uint32_t>(index), static_cast<std::uint32_t>(index >> 32), stream} {}
+          ctr_{0u, static_cast<std::uint32_t>(index), static_cast<std::uint32_t>(index >> 32), stream} {
+        next_block_ = philox4x32_10(ctr_, key_);
+    }
 
-    double uniform() {
+    [[gnu::always_inline]] double uniform() {
         if (next_ == 4) refill();
         return (static_cast<double>(block_[next_++]) + 0.5) * 0x1p-32;
     }
 
 private:
-    void refill() {
-        block_ = philox4x32_10(ctr_, key_);
+    [[gnu::always_inline]] void refill() {
+        block_ = next_block_;
         ++ctr_[0];
+        next_block_ = philox4x32_10(ctr_, key_);
         next_ = 0;
     }
     std::array<std::uint32_t, 2> key_;
-    Philox4x32 ctr_;
+    Philox4x32 ctr_;  // counter of next_block_
     Philox4x32 block_{};
+    Philox4x32 next_block_{};
     int next_ = 4;
 };
 

@@ -188,13 +188,14 @@ struct EntrySampler {
         set_weights(weight);
     }
 
-    void sample(PathRng& rng, PathState& s) const {
+    [[gnu::always_inline]] void sample(PathRng& rng, const GridView& grid, PathState& s) const {
         const double xi = rng.uniform();
         int f = 0;
         while (f < nfaces - 1 && xi > cumulative[f]) ++f;
         const int axis = face[f] / 2;
         const bool high = face[f] % 2 == 1;
         int pixel[3] = {0, 0, 0};  // box-relative pixel on the masked face
+        std::array<int, 3> cell{};
         if (masked[f]) {
             const int nlive = static_cast<int>(live[f].size());
             const int p = live[f][static_cast<size_t>(std::min(static_cast<int>(rng.uniform() * nlive), nlive - 1))];
@@ -204,18 +205,19 @@ struct EntrySampler {
         }
         for (int a = 0; a < 3; ++a) {
             if (a == axis) {
-                s.cell[a] = high ? hi[a] - 1 - lo[a] : 0;
+                cell[a] = high ? hi[a] - 1 - lo[a] : 0;
                 s.frac[a] = high ? 1.0 : 0.0;
             } else if (masked[f]) {
-                s.cell[a] = pixel[a];
+                cell[a] = pixel[a];
                 s.frac[a] = rng.uniform();
             } else {
                 const double u = lo[a] + rng.uniform() * (hi[a] - lo[a]);
                 const int c = std::min(static_cast<int>(u), hi[a] - 1);
                 s.frac[a] = u - c;
-                s.cell[a] = c - lo[a];
+                cell[a] = c - lo[a];
             }
         }
+        s.idx = grid.index(cell);
     }
 
 private:
@@ -230,7 +232,7 @@ private:
 
 // The direction at polar cosine mu and azimuth (cos_phi, sin_phi) around unit w: rotate_direction
 // of src/physics/phase.h with the azimuth's cosine and sine given (sincos.h computes them).
-inline Vec3 turn_direction(const Vec3& w, double mu, double cos_phi, double sin_phi) {
+[[gnu::always_inline]] inline Vec3 turn_direction(const Vec3& w, double mu, double cos_phi, double sin_phi) {
     Vec3 u, v;
     orthonormal_basis(w, u, v);
     const double s = std::sqrt(std::max(0.0, 1.0 - mu * mu));
@@ -243,7 +245,6 @@ struct PathTally {
     double roulette_net = 0.0;        // weight created (+) or destroyed (-) by roulette
     double escaped_direct = 0.0;      // left the domain without scattering
     double escaped_diffuse[6]{};      // left through each face after >= 1 scattering
-    double diffuse_track = 0.0;       // sum of w len (cells) after the first scattering
     std::int64_t collisions = 0;
 };
 
@@ -261,7 +262,7 @@ inline double uncollided_track(double tau_in, double kappa, double len) {
 // Continues a path of weight w from its collision at s until it leaves the domain or ends:
 // implicit capture, roulette, HG scattering, the next free flight (tallied as diffuse).
 template <class TallyDiffuse>
-inline void scatter_path(const GridView& grid, const PhotonOptics& o, PathRng& rng, PathState& s,
+[[gnu::always_inline]] inline void scatter_path(const GridView& grid, const PhotonOptics& o, PathRng& rng, PathState& s,
                          PathTally& out, double w, TallyDiffuse&& tally_diffuse) {
     for (;;) {
         ++out.collisions;
@@ -282,10 +283,7 @@ inline void scatter_path(const GridView& grid, const PhotonOptics& o, PathRng& r
         sincos_2pi(rng.uniform(), cos_phi, sin_phi);  // phi = 2π xi
         s.d = turn_direction(s.d, mu, cos_phi, sin_phi);
         const double tau = -std::log(rng.uniform());
-        const int face = walk_optical_depth(grid, s, tau, [&](std::int64_t idx, double len) {
-            tally_diffuse(idx, w * len);
-            out.diffuse_track += w * len;
-        });
+        const int face = walk_optical_depth(grid, s, tau, [&](std::int64_t idx, double len) { tally_diffuse(idx, w * len); });
         if (face >= 0) {
             out.escaped_diffuse[face] += w;
             return;
@@ -299,7 +297,7 @@ inline void scatter_path(const GridView& grid, const PhotonOptics& o, PathRng& r
 // `forced` the expected uncollided track (uncollided_track) over the whole entry ray. A forced
 // path costs one walk of its entry ray (tau_tot) plus the walk to its collision.
 template <bool tally_reduced_on = false, class TallyDiffuse, class TallyReduced>
-inline void trace_photon(const GridView& grid, const PhotonOptics& o, PathRng& rng, PathState& s,
+[[gnu::always_inline]] inline void trace_photon(const GridView& grid, const PhotonOptics& o, PathRng& rng, PathState& s,
                          PathTally& out, TallyDiffuse&& tally_diffuse, TallyReduced&& tally_reduced,
                          bool forced = false) {
     constexpr double inf = std::numeric_limits<double>::infinity();
@@ -339,13 +337,10 @@ inline void trace_photon(const GridView& grid, const PhotonOptics& o, PathRng& r
 // s.d) with weight 1. All emitted light is diffuse light (DESIGN §1), so its track is tallied
 // from the start; an emitted photon that leaves uncollided is booked in escaped_diffuse.
 template <class TallyDiffuse>
-inline void trace_emitted_photon(const GridView& grid, const PhotonOptics& o, PathRng& rng, PathState& s,
+[[gnu::always_inline]] inline void trace_emitted_photon(const GridView& grid, const PhotonOptics& o, PathRng& rng, PathState& s,
                                  PathTally& out, TallyDiffuse&& tally_diffuse) {
     const double tau = -std::log(rng.uniform());
-    const int face = walk_optical_depth(grid, s, tau, [&](std::int64_t idx, double len) {
-        tally_diffuse(idx, len);
-        out.diffuse_track += len;
-    });
+    const int face = walk_optical_depth(grid, s, tau, [&](std::int64_t idx, double len) { tally_diffuse(idx, len); });
     if (face >= 0) {
         out.escaped_diffuse[face] += 1.0;
         return;

@@ -11,7 +11,7 @@
 
 namespace nimbus::mc {
 
-inline void sincos_2pi(double xi, double& c, double& s) {
+[[gnu::always_inline]] inline void sincos_2pi(double xi, double& c, double& s) {
     const double x = 4.0 * xi;
     const int q = static_cast<int>(x);  // quadrant, 0..3
     double r = x - q;                   // [0, 1), exact

@@ -17,14 +17,14 @@ inline double hg_phase(double g, double mu) {
 }
 
 // Samples mu = cos(theta) from HG given a uniform xi in [0, 1). pdf(mu) = 2π p(mu).
-inline double hg_sample_mu(double g, double xi) {
+[[gnu::always_inline]] inline double hg_sample_mu(double g, double xi) {
     if (std::abs(g) < 1e-4) return 1.0 - 2.0 * xi;
     const double s = (1.0 - g * g) / (1.0 - g + 2.0 * g * xi);
     return std::clamp((1.0 + g * g - s * s) / (2.0 * g), -1.0, 1.0);
 }
 
 // An orthonormal frame around unit w: returns u, v with (u, v, w) right-handed.
-inline void orthonormal_basis(const Vec3& w, Vec3& u, Vec3& v) {
+[[gnu::always_inline]] inline void orthonormal_basis(const Vec3& w, Vec3& u, Vec3& v) {
     const double sign = std::copysign(1.0, w.z);
     const double a = -1.0 / (sign + w.z), b = w.x * w.y * a;
     u = {1.0 + sign * w.x * w.x * a, sign * b, -sign * w.x};

@@ -60,18 +60,20 @@ TEST(Kernels, WalkMatchesChordLengthsAndExit) {
             for (int i = 0; i < n[0]; ++i)
                 if ((i > 8 && j < 4) || (k < 3 && i < 4) || U(gen) < 0.05)
                     kappa[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] = static_cast<float>(0.1 + U(gen));
-    const VoxelGrid vg = make_voxels(n, kappa);
+    VoxelGrid vg = make_voxels(n, kappa);
     const GridView g = vg.view({false, false, false});
     for (int ray = 0; ray < 300; ++ray) {
         PathState s;
+        std::array<int, 3> c0{};
         for (int a = 0; a < 3; ++a) {
             const double x = U(gen) * n[a];
-            s.cell[a] = std::min(static_cast<int>(x), n[a] - 1);
-            s.frac[a] = x - s.cell[a];
+            c0[a] = std::min(static_cast<int>(x), n[a] - 1);
+            s.frac[a] = x - c0[a];
         }
+        s.idx = g.index(c0);
         const double mu = 2.0 * U(gen) - 1.0, phi = 2.0 * std::numbers::pi * U(gen), r = std::sqrt(1.0 - mu * mu);
         s.d = {r * std::cos(phi), r * std::sin(phi), mu};
-        const Vec3 x0{s.cell[0] + s.frac[0], s.cell[1] + s.frac[1], s.cell[2] + s.frac[2]};
+        const Vec3 x0{c0[0] + s.frac[0], c0[1] + s.frac[1], c0[2] + s.frac[2]};
         std::map<std::int64_t, double> seen;
         const int face = walk_optical_depth(g, s, std::numeric_limits<double>::infinity(),
                                             [&](std::int64_t idx, double len) { seen[idx] += len; });
@@ -88,7 +90,8 @@ TEST(Kernels, WalkMatchesChordLengthsAndExit) {
                     EXPECT_NEAR(got, expect, 1e-9) << "ray " << ray << " cell " << i << " " << j << " " << k;
                 }
         // the exit point lies on the reported face, on the straight line from x0
-        const Vec3 xe{s.cell[0] + s.frac[0], s.cell[1] + s.frac[1], s.cell[2] + s.frac[2]};
+        const std::array<int, 3> ce = cell_of(g, s.idx);
+        const Vec3 xe{ce[0] + s.frac[0], ce[1] + s.frac[1], ce[2] + s.frac[2]};
         const int axis = face / 2;
         EXPECT_NEAR(xe[axis], face % 2 ? n[axis] : 0.0, 1e-9);
         const double t = (xe[axis] - x0[axis]) / s.d[axis];
@@ -110,7 +113,7 @@ TEST(Kernels, WalkOnTheMediumBoxEqualsWalkOnTheDomain) {
                 full[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] = v;
                 box[(static_cast<size_t>(k - lo[2]) * bn[1] + (j - lo[1])) * bn[0] + (i - lo[0])] = v;
             }
-    const VoxelGrid gf = make_voxels(n, full);
+    VoxelGrid gf = make_voxels(n, full);
     VoxelGrid gb = make_voxels(bn, box);
     gb.origin = lo;
     gb.domain = n;
@@ -118,13 +121,16 @@ TEST(Kernels, WalkOnTheMediumBoxEqualsWalkOnTheDomain) {
     int faces_seen = 0;
     for (int ray = 0; ray < 2000; ++ray) {
         PathState sf, sb;
+        std::array<int, 3> cf{}, cb{};
         for (int a = 0; a < 3; ++a) {
             const double x = lo[a] + U(gen) * bn[a];
-            sf.cell[a] = std::min(static_cast<int>(x), hi[a] - 1);
-            sf.frac[a] = x - sf.cell[a];
-            sb.cell[a] = sf.cell[a] - lo[a];
+            cf[a] = std::min(static_cast<int>(x), hi[a] - 1);
+            sf.frac[a] = x - cf[a];
+            cb[a] = cf[a] - lo[a];
             sb.frac[a] = sf.frac[a];
         }
+        sf.idx = vf.index(cf);
+        sb.idx = vb.index(cb);
         const double mu = 2.0 * U(gen) - 1.0, phi = 2.0 * std::numbers::pi * U(gen), r = std::sqrt(1.0 - mu * mu);
         sf.d = sb.d = Vec3{r * std::cos(phi), r * std::sin(phi), mu};
         std::map<std::array<int, 3>, double> segf, segb;
@@ -139,7 +145,7 @@ TEST(Kernels, WalkOnTheMediumBoxEqualsWalkOnTheDomain) {
         if (ff >= 0) faces_seen |= 1 << ff;
         if (ff < 0)
             for (int a = 0; a < 3; ++a) {
-                EXPECT_EQ(sf.cell[a], sb.cell[a] + lo[a]);
+                EXPECT_EQ(cell_of(vf, sf.idx)[a], cell_of(vb, sb.idx)[a] + lo[a]);
                 EXPECT_NEAR(sf.frac[a], sb.frac[a], 1e-12);
             }
         ASSERT_EQ(segf.size(), segb.size());
@@ -165,7 +171,7 @@ TEST(Kernels, EntryMaskKeepsEveryRayThatMeetsTheMedium) {
     auto nonempty = [&](const std::array<int, 3>& c) {
         return kappa[(static_cast<size_t>(c[2]) * n[1] + c[1]) * n[0] + c[0]] > 0.0f;
     };
-    const VoxelGrid vg = make_voxels(n, kappa);
+    VoxelGrid vg = make_voxels(n, kappa);
     for (const bool periodic_xy : {false, true}) {
         const std::array<bool, 3> periodic{periodic_xy, periodic_xy, false};
         const GridView g = vg.view(periodic);
@@ -184,8 +190,9 @@ TEST(Kernels, EntryMaskKeepsEveryRayThatMeetsTheMedium) {
                 PathRng rng(3, static_cast<std::uint32_t>(dir), p);
                 PathState s;
                 s.d = w;
-                all.sample(rng, s);
-                const Vec3 x0{s.cell[0] + s.frac[0], s.cell[1] + s.frac[1], s.cell[2] + s.frac[2]};
+                all.sample(rng, g, s);
+                const std::array<int, 3> c0 = cell_of(g, s.idx);
+                const Vec3 x0{c0[0] + s.frac[0], c0[1] + s.frac[1], c0[2] + s.frac[2]};
                 bool hit = false;
                 if (periodic_xy) {
                     PathState t = s;
@@ -204,7 +211,7 @@ TEST(Kernels, EntryMaskKeepsEveryRayThatMeetsTheMedium) {
                     const int a = live.face[f] / 2;
                     if (x0[a] != (live.face[f] % 2 ? n[a] : 0.0)) continue;
                     const int u = (a + 1) % 3, v = (a + 2) % 3;
-                    const std::int32_t pixel = s.cell[u] + n[u] * s.cell[v];
+                    const std::int32_t pixel = c0[u] + n[u] * c0[v];
                     live_pixel |= !live.masked[f] ||
                                   std::find(live.live[f].begin(), live.live[f].end(), pixel) != live.live[f].end();
                 }

@@ -1,0 +1,38 @@
+#include "solvers/montecarlo/trace_light.h"
+
+namespace nimbus::mc {
+
+// The kernels of photon.h and grid_walk.h are always_inline, so each clone compiles its own
+// copy of the whole path loop for its target.
+__attribute__((target_clones("arch=x86-64-v3", "default")))
+void trace_photons(const GridView& grid, const PhotonOptics& optics, const LightTerm& term, std::uint64_t seed,
+                   std::int64_t lo, std::int64_t hi, bool forced_first_collision, double* reduced,
+                   std::vector<std::int64_t>& lit, PathTally& out) {
+    Voxel* const voxel = grid.voxel;
+    auto diffuse = [voxel, &lit](std::int64_t idx, double wl) {
+        double& a = voxel[idx].tally;
+        if (a == 0.0) lit.push_back(idx);
+        a += wl;
+    };
+    auto uncollided = [reduced, &lit](std::int64_t idx, double track) {
+        if (reduced[idx] == 0.0) lit.push_back(idx);
+        reduced[idx] += track;
+    };
+    for (std::int64_t p = lo; p < hi; ++p) {
+        PathRng rng(seed, term.stream, static_cast<std::uint64_t>(p));
+        PathState s;
+        if (term.emitter) {
+            term.emitter->sample(rng, grid, s);
+            trace_emitted_photon(grid, optics, rng, s, out, diffuse);
+            continue;
+        }
+        s.d = term.w;
+        term.entry->sample(rng, grid, s);
+        if (reduced)
+            trace_photon<true>(grid, optics, rng, s, out, diffuse, uncollided, forced_first_collision);
+        else
+            trace_photon(grid, optics, rng, s, out, diffuse, [](std::int64_t, double) {}, forced_first_collision);
+    }
+}
+
+}  // namespace nimbus::mc
