@@ -17,7 +17,12 @@ void to_hypre(const Box& b, HYPRE_Int lo[3], HYPRE_Int hi[3]) {
 
 // Preconditioner settings: one V-cycle, zero initial guess, symmetric smoothing.
 void configure_pfmg(HYPRE_StructSolver s, bool as_precond, bool periodic) {
-    HYPRE_StructPFMGSetRAPType(s, 0);  // Galerkin coarse operators
+    // Galerkin coarse operators are requested, but only the Jacobi smoother gets them: with
+    // red/black (types 2, 3) hypre's PFMGSetup switches to the non-Galerkin 7-point ParFlow
+    // operator. On the noisy cumulus that operator over-corrects modes on small clusters of
+    // capped edge cells: the largest eigenvalue of (V-cycle)·A is 1.10, 1.42, 1.83 at 64, 128,
+    // 256³ (smallest 0.78, 0.75, 0.73), hence PFMG-PCG 8, 10, 12 iterations (README "Solvers").
+    HYPRE_StructPFMGSetRAPType(s, 0);
     // As a preconditioner: red/black Gauss-Seidel in symmetric sweep order (type 2), except
     // on periodic grids where it broke PCG (no convergence in 200 iterations on a 4x4
     // periodic slab). Stand-alone: weighted Jacobi; red/black diverged (NaN) on a cloud.
