@@ -183,7 +183,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     std::vector<double> rsum, rsumsq;
     if (settings.tally_reduced) rsum.assign(sum.size(), 0.0), rsumsq.assign(sum.size(), 0.0);
     std::vector<Counters> batch_counters(static_cast<size_t>(B) * nb, Counters{});  // [batch][band]
-    std::int64_t my_photons = 0, my_collisions = 0;
+    std::int64_t my_photons = 0, my_collisions = 0, my_segments = 0;
 
     std::vector<VoxelGrid> voxels(groups.size());
     {
@@ -267,6 +267,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                 }
                 if (gi == 0) my_photons += hi - lo;  // a photon traced once per optics group
                 my_collisions += pt.collisions;
+                my_segments += pt.segments;
                 for (int q = 0; q < nbg; ++q) {
                     Counters& c = batch_counters[static_cast<size_t>(batch) * nb + G.bands[static_cast<size_t>(q)]];
                     if (emitter) {
@@ -351,10 +352,11 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     progress.finish();
     const double t_traced = wall_time();
     res.batches = done;
-    std::int64_t counts[2] = {my_photons, my_collisions}, total[2] = {0, 0};
-    MPI_Allreduce(counts, total, 2, MPI_INT64_T, MPI_SUM, d.comm());
+    std::int64_t counts[3] = {my_photons, my_collisions, my_segments}, total[3] = {0, 0, 0};
+    MPI_Allreduce(counts, total, 3, MPI_INT64_T, MPI_SUM, d.comm());
     res.photons = total[0];
     res.collisions = total[1];
+    res.segments = total[2];
 
     // Counters: mean and standard error of the batch estimates.
     res.counters.assign(static_cast<size_t>(nb), Counters{});

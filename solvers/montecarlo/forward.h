@@ -67,6 +67,7 @@ struct ForwardResult {
     // Per band, over the whole domain (same on every rank): batch mean and its standard error.
     std::vector<Counters> counters, counters_stderr;
     std::int64_t photons = 0, collisions = 0;  // totals over all ranks
+    std::int64_t segments = 0;                 // tallied diffuse track segments, all ranks (the walk's work)
     int batches = 0;                           // batches completed
     double seconds = 0.0;                      // wall time of trace_forward (max over ranks)
     double setup_seconds = 0.0;                // (all four: max over ranks) replication, voxel grid, empty space, buffers

@@ -64,6 +64,7 @@ public:
         ctx.report.values()["montecarlo"] = {
             {"photons", r.photons},
             {"collisions", r.collisions},
+            {"tallied_segments", r.segments},
             {"batches", r.batches},
             {"stop_reason", r.stop_reason},
             {"seconds", r.seconds},
@@ -81,8 +82,11 @@ public:
                   r.photons, r.collisions, r.seconds, r.batches, r.stop_reason, r.setup_seconds, r.trace_seconds,
                   r.reduce_seconds);
         log::info("montecarlo: tracing {:.3g} paths/s/core, {:.3g} collisions/s/core ({:.3g} over the whole "
-                  "solve), relative error of the total diffuse power {:.2e}, replicated grid {:.3f} GB per rank",
-                  paths_per_s, coll_per_s, coll_per_s_all, r.rel_error, r.replicated_gb);
+                  "solve; {:.1f} tallied cell segments per collision), relative error of the total diffuse power "
+                  "{:.2e}, replicated grid {:.3f} GB per rank",
+                  paths_per_s, coll_per_s, coll_per_s_all,
+                  static_cast<double>(r.segments) / std::max<double>(1.0, static_cast<double>(r.collisions)), r.rel_error,
+                  r.replicated_gb);
     }
 
     // The path tracer knows only the light terms: with volume sources the pipeline's ray

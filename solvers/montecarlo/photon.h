@@ -246,6 +246,7 @@ struct PathTally {
     double escaped_direct = 0.0;      // left the domain without scattering
     double escaped_diffuse[6]{};      // left through each face after >= 1 scattering
     std::int64_t collisions = 0;
+    std::int64_t segments = 0;        // diffuse track segments tallied (cells crossed with a tally)
 };
 
 struct PhotonOptics {

@@ -9,7 +9,8 @@ void trace_photons(const GridView& grid, const PhotonOptics& optics, const Light
                    std::int64_t lo, std::int64_t hi, bool forced_first_collision, double* reduced,
                    std::vector<std::int64_t>& lit, PathTally& out) {
     Voxel* const voxel = grid.voxel;
-    auto diffuse = [voxel, &lit](std::int64_t idx, double wl) {
+    auto diffuse = [voxel, &lit, &out](std::int64_t idx, double wl) {
+        ++out.segments;
         double& a = voxel[idx].tally;
         if (a == 0.0) lit.push_back(idx);
         a += wl;
