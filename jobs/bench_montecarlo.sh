@@ -1,0 +1,60 @@
+#!/usr/bin/env bash
+# Monte Carlo throughput (issue 3 item 6): the default cloud, forward tracing only (no image,
+# no HDF5, the fast `sweep` light pass), on 1 and 2 ranks. Each run logs its rates; this prints
+# the median of REPS runs per rank count and the 2-rank speed-up of the tracing phase. Target:
+# 10⁷ collisions/s per core and a 2-rank speed-up ≥ 1.8.
+#   bash jobs/bench_montecarlo.sh [build-dir [photons [reps [reference-nimbus]]]]
+#   (defaults: build, 4000000, 3)
+# With a fourth argument (a nimbus binary of another version), both run alternately, so that a
+# shared machine's load hits both alike (rows labelled "new" / "ref"). Then the kernel's floor:
+# bench_montecarlo (jobs/bench/bench_montecarlo.cpp) runs the same path kernel on a small
+# periodic grid that stays in cache (needs -DNIMBUS_BUILD_BENCHMARKS=ON).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+source jobs/env.sh
+bin="${1:-build}/bin/nimbus"
+photons="${2:-4000000}"
+reps="${3:-3}"
+ref="${4:-}"
+[ -x "$bin" ] || { echo "missing $bin: cmake --build ${1:-build} --target nimbus" >&2; exit 1; }
+
+# One run: prints "trace_seconds paths/s/core collisions/s/core segments/collision".
+run() {
+  mpiexec -n "$2" "$1" run --set model.montecarlo.photons="$photons" --set output.image=false \
+    --set output.hdf5=false --set light.method=sweep 2>&1 | awk '
+      /collisions in/ { for (i = 1; i <= NF; ++i) if ($i == "tracing") t = $(i + 1) }
+      /paths\/s\/core/ { for (i = 1; i <= NF; ++i) { if ($i == "paths/s/core,") p = $(i - 1);
+                          if ($i == "collisions/s/core") c = $(i - 1); if ($i == "tallied") s = $(i - 1) } }
+      END { print t, p, c, s }'
+}
+median() { sort -g | awk '{ v[NR] = $1 } END { print v[int((NR + 1) / 2)] }'; }
+
+echo "| version | ranks | photons | tracing s | paths/s per core | collisions/s per core | tallied segments per collision |"
+echo "| --- | --- | --- | --- | --- | --- | --- |"
+declare -A T P C S
+versions=(new)
+[[ -n "$ref" ]] && versions+=(ref)
+for np in 1 2; do
+  for ((r = 0; r < reps; ++r)); do
+    for v in "${versions[@]}"; do
+      b="$bin"; [[ "$v" == ref ]] && b="$ref"
+      read -r t p c s < <(run "$b" "$np")
+      T[$v$np]+="$t "; P[$v$np]+="$p "; C[$v$np]+="$c "; S[$v$np]+="$s "
+    done
+  done
+  for v in "${versions[@]}"; do
+    med() { tr ' ' '\n' <<<"$1" | grep -v '^$' | median; }
+    echo "| $v | $np | $photons | $(med "${T[$v$np]}") | $(med "${P[$v$np]}") | $(med "${C[$v$np]}") | $(med "${S[$v$np]}") |"
+  done
+done
+for v in "${versions[@]}"; do
+  t1=$(tr ' ' '\n' <<<"${T[${v}1]}" | grep -v '^$' | median)
+  t2=$(tr ' ' '\n' <<<"${T[${v}2]}" | grep -v '^$' | median)
+  echo "2-rank speed-up of the tracing phase ($v, medians of $reps): $(awk -v a="$t1" -v b="$t2" 'BEGIN { printf "%.2f", a / b }')"
+done
+floor="${1:-build}/bin/bench_montecarlo"
+if [[ -x "$floor" ]]; then
+  echo
+  echo "Kernel floor (cache-resident homogeneous grid):"
+  "$floor"
+fi
