@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <utility>
 
 #include "solvers/montecarlo/emitter.h"
 #include "solvers/montecarlo/empty_space.h"
@@ -247,22 +248,19 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                                      static_cast<std::uint32_t>(l)};
                 trace_photons(grid, po, term, opt.seed, lo, hi, settings.forced_first_collision,
                               settings.tally_reduced ? reduced_acc.data() : nullptr, light_touched, pt);
+                auto fold = [&](std::vector<double>& to, std::int64_t idx, double track) {
+                    double* c = to.data() + idx * nbg;
+                    if (c[strongest] == 0.0) touched.push_back(idx);
+                    for (int q = 0; q < nbg; ++q) c[q] += track * scale[q];
+                };
                 double diffuse_track = 0.0;  // sum of w len (cells) after the first scattering
                 for (const std::int64_t idx : light_touched) {
-                    const double v = grid.voxel[idx].tally;
-                    grid.voxel[idx].tally = 0.0;
+                    const double v = std::exchange(grid.voxel[idx].tally, 0.0);
                     diffuse_track += v;
-                    if (v != 0.0) {
-                        double* c = tally.data() + idx * nbg;
-                        if (c[strongest] == 0.0) touched.push_back(idx);
-                        for (int q = 0; q < nbg; ++q) c[q] += v * scale[q];
-                    }
-                    if (settings.tally_reduced && reduced_acc[static_cast<size_t>(idx)] != 0.0) {
-                        const double r = reduced_acc[static_cast<size_t>(idx)];
-                        reduced_acc[static_cast<size_t>(idx)] = 0.0;
-                        double* c = rtally.data() + idx * nbg;
-                        if (c[strongest] == 0.0) touched.push_back(idx);
-                        for (int q = 0; q < nbg; ++q) c[q] += r * scale[q];
+                    if (v != 0.0) fold(tally, idx, v);
+                    if (settings.tally_reduced) {
+                        const double r = std::exchange(reduced_acc[static_cast<size_t>(idx)], 0.0);
+                        if (r != 0.0) fold(rtally, idx, r);
                     }
                 }
                 if (gi == 0) my_photons += hi - lo;  // a photon traced once per optics group
