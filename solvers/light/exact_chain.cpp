@@ -7,50 +7,37 @@
 
 namespace nimbus {
 
-double slab_ray_integral(const Field<double>& rho, const Int3& n, const std::array<bool, 3>& periodic,
-                         const Vec3& b, std::array<double, 3> pos) {
-    const Box& own = rho.owned();
-    const int z0 = own.lo[2], z1 = own.hi[2];
-    constexpr double inf = std::numeric_limits<double>::infinity();
-    int cell[3], step[3];
-    double tmax[3], tdelta[3];
+double ray_integral(RayGrid& g, const Vec3& b, const std::array<double, 3>& pos) {
+    const GridView v = g.voxels.view(g.periodic);
+    std::array<int, 3> cell{};
+    PathState s;
     for (int a = 0; a < 3; ++a) {
-        const double da = b[a];
-        step[a] = da > 0 ? 1 : -1;
         // A point on a cell face belongs to the cell the ray moves into.
-        cell[a] = da >= 0 ? static_cast<int>(std::floor(pos[a])) : static_cast<int>(std::ceil(pos[a])) - 1;
-        tdelta[a] = da != 0 ? std::abs(1.0 / da) : inf;
-        const double next = da > 0 ? cell[a] + 1.0 : cell[a];
-        tmax[a] = da != 0 ? (next - pos[a]) / da : inf;
-    }
-    if (cell[2] < z0 || cell[2] >= z1) return 0.0;
-    for (int a = 0; a < 2; ++a) {
-        if (cell[a] >= 0 && cell[a] < n[a]) continue;
-        if (!periodic[a]) return 0.0;
-        cell[a] = (cell[a] % n[a] + n[a]) % n[a];
-    }
-    double t = 0.0, sum = 0.0;
-    for (;;) {
-        const int a = tmax[0] < tmax[1] ? (tmax[0] < tmax[2] ? 0 : 2) : (tmax[1] < tmax[2] ? 1 : 2);
-        if (tmax[a] == inf) break;  // b == 0: cannot happen for a unit vector
-        sum += rho(cell[0], cell[1], cell[2]) * (tmax[a] - t);
-        t = tmax[a];
-        cell[a] += step[a];
-        tmax[a] += tdelta[a];
-        if (a == 2) {
-            if (cell[2] < z0 || cell[2] >= z1) break;
-        } else if (cell[a] < 0 || cell[a] >= n[a]) {
-            if (!periodic[a]) break;
-            cell[a] = (cell[a] + n[a]) % n[a];
+        int c = b[a] >= 0 ? static_cast<int>(std::floor(pos[a])) : static_cast<int>(std::ceil(pos[a])) - 1;
+        s.frac[static_cast<size_t>(a)] = std::clamp(pos[a] - c, 0.0, 1.0);
+        if (a < 2 && (c < 0 || c >= v.domain[a])) {
+            if (!v.periodic[a]) return 0.0;
+            c = (c % v.domain[a] + v.domain[a]) % v.domain[a];
         }
+        c -= v.origin[a];
+        if (c < 0 || c >= v.n[a]) return 0.0;
+        cell[static_cast<size_t>(a)] = c;
     }
+    s.idx = v.index(cell);
+    s.d = b;
+    double sum = 0.0;
+    walk_optical_depth(v, s, std::numeric_limits<double>::infinity(),
+                       [&](std::int64_t idx, double len) { sum += g.rho[static_cast<size_t>(idx)] * len; });
     return sum;
 }
 
-void exact_tau_chain(const Decomposition& d, const Field<double>& rho, double h, const DirectionalLight& light,
+RayGrid make_slab_grid(const Decomposition& d, const Field<double>& rho) {
+    return make_ray_grid(d.local(), d.global().hi, {d.periodic(0), d.periodic(1), d.periodic(2)},
+                         [&](int i, int j, int k) { return rho(i, j, k); });
+}
+
+void exact_tau_chain(const Decomposition& d, RayGrid& slab, double h, const DirectionalLight& light,
                      Field<double>& tau) {
-    const Int3 n = d.global().hi;
-    const std::array<bool, 3> periodic{d.periodic(0), d.periodic(1), d.periodic(2)};
     const Vec3 b = -normalized(light.w);  // toward the light
     const Box& own = d.local();
     // Horizontal light never crosses a z face: every rank is on its own.
@@ -82,7 +69,7 @@ void exact_tau_chain(const Decomposition& d, const Field<double>& rho, double h,
                 for (int a = 0; a < 3; ++a) pos[a] += t * b[a];
                 pos[2] = z_entry;
             }
-            piece[p++] = slab_ray_integral(rho, n, periodic, b, pos) * h;
+            piece[p++] = ray_integral(slab, b, pos) * h;
         });
         upstream_sum.assign(piece.size(), 0.0);
         if (upstream != MPI_PROC_NULL)

@@ -84,6 +84,11 @@ LightTransport exact_light_transport(const Decomposition& d, const Medium& m,
     const std::vector<double> rho = chain ? std::vector<double>{} : allgather_global(m.rho, d);
     const Int3 n = d.global().hi;
     const std::array<bool, 3> periodic{d.periodic(0), d.periodic(1), d.periodic(2)};
+    // The cells this rank's rays cross, prepared once for all lights (exact_chain.h).
+    RayGrid grid = chain ? make_slab_grid(d, m.rho)
+                         : make_ray_grid(d.global(), n, periodic, [&](int i, int j, int k) {
+                               return rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i];
+                           });
     LightTransport lt;
     lt.lights = lights;
     Progress progress("light pass (exact)", static_cast<double>(lights.size()), d.rank() == 0);
@@ -94,10 +99,11 @@ LightTransport exact_light_transport(const Decomposition& d, const Medium& m,
                                         light.name, "xyz"[a]));
         Field<double> tau(d.local(), 1, 1, 0.0);
         if (chain) {
-            exact_tau_chain(d, m.rho, m.grid.h, light, tau);
+            exact_tau_chain(d, grid, m.grid.h, light, tau);
         } else {
+            const Vec3 b = -normalized(light.w);
             for_each_cell(d.local(), [&](int i, int j, int k) {
-                tau(i, j, k) = exact_tau_rho(rho, n, m.grid.h, light.w, i, j, k, periodic);
+                tau(i, j, k) = ray_integral(grid, b, {i + 0.5, j + 0.5, k + 0.5}) * m.grid.h;
             });
         }
         exchange_halo(tau, d);

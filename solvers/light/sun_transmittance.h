@@ -29,16 +29,17 @@ namespace nimbus {
 // Collective over d.comm(). Requires slabs along z (process grid 1 x 1 x P). With periodic x/y
 // the segment always starts from the upwind z layer (any non-horizontal light). m.rho must have its ghost
 // layer exchanged. Times "light" (and "light/sweep") into report.
-// method exact: long characteristics instead (see LightSpec); any decomposition; replicates
-// the density on every rank.
+// method exact: long characteristics instead (see LightSpec; exact_chain.h); any decomposition;
+// slabs along z pipeline the rays down the chain, other process grids replicate the density.
 LightTransport compute_light_transport(const Decomposition& d, const Medium& m,
                                        const std::vector<DirectionalLight>& lights, Report& report,
                                        const sweep::SweepOptions& opt = {},
                                        LightSpec::Method method = LightSpec::Method::sweep);
 
 // Exact ∫ rho ds from the centre of global cell (i, j, k) back to the domain boundary against w,
-// by a 3-D DDA over a full density array rho_global [z][y][x] (periodic axes wrap; the light
-// must then not be parallel to them). O(n) per cell: the exact method and the tests' reference.
+// by a plain cell-by-cell 3-D DDA over a full density array rho_global [z][y][x] (periodic axes
+// wrap; the light must then not be parallel to them). O(n) per cell. The tests' brute-force
+// reference: the exact method itself walks with the shared grid walk (exact_chain.h).
 double exact_tau_rho(const std::vector<double>& rho_global, const Int3& n, double h, const Vec3& w,
                      int i, int j, int k, std::array<bool, 3> periodic = {false, false, false});
 

@@ -16,7 +16,7 @@
 #include <utility>
 #include <vector>
 
-#include "solvers/montecarlo/grid_walk.h"
+#include "src/core/grid_walk.h"
 #include "solvers/montecarlo/philox.h"
 #include "solvers/montecarlo/sincos.h"
 #include "src/core/box.h"

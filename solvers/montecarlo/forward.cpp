@@ -9,8 +9,8 @@
 #include <utility>
 
 #include "solvers/montecarlo/emitter.h"
-#include "solvers/montecarlo/empty_space.h"
-#include "solvers/montecarlo/grid_walk.h"
+#include "src/core/empty_space.h"
+#include "src/core/grid_walk.h"
 #include "solvers/montecarlo/photon.h"
 #include "solvers/montecarlo/trace_light.h"
 #include "src/core/error.h"

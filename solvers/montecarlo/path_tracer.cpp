@@ -6,10 +6,10 @@
 #include <cmath>
 #include <limits>
 
-#include "solvers/montecarlo/empty_space.h"
+#include "src/core/empty_space.h"
 #include "solvers/montecarlo/forward.h"
 #include "src/core/gather.h"
-#include "solvers/montecarlo/grid_walk.h"
+#include "src/core/grid_walk.h"
 #include "solvers/montecarlo/philox.h"
 #include "src/core/log.h"
 #include "src/core/progress.h"

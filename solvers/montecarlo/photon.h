@@ -31,7 +31,7 @@
 #include <numbers>
 #include <vector>
 
-#include "solvers/montecarlo/grid_walk.h"
+#include "src/core/grid_walk.h"
 #include "solvers/montecarlo/philox.h"
 #include "solvers/montecarlo/sincos.h"
 #include "src/physics/phase.h"

@@ -18,7 +18,7 @@
 #include <vector>
 
 #include "solvers/montecarlo/emitter.h"
-#include "solvers/montecarlo/grid_walk.h"
+#include "src/core/grid_walk.h"
 #include "solvers/montecarlo/photon.h"
 
 namespace nimbus::mc {

@@ -17,8 +17,9 @@ struct LitMedium {
 
 // A medium on comm with density rho_of(i, j, k), cell size h, periodic as given.
 template <class F>
-LitMedium make(MPI_Comm comm, const Int3& n, double h, F rho_of, std::array<bool, 3> periodic = {false, false, false}) {
-    LitMedium s{Decomposition(comm, n, {0, 0, 0}, periodic), {}};
+LitMedium make(MPI_Comm comm, const Int3& n, double h, F rho_of, std::array<bool, 3> periodic = {false, false, false},
+               Int3 dims = {0, 0, 0}) {
+    LitMedium s{Decomposition(comm, n, dims, periodic), {}};
     s.m.grid.n = n;
     s.m.grid.h = h;
     s.m.bands = {BandOptics{}};
@@ -188,10 +189,24 @@ namespace {
 TEST(ExactLight, SlabChainEqualsBruteForceInAHeterogeneousMedium) {
     // On slabs the exact method integrates each ray piecewise on the ranks it crosses; the sum
     // must equal one ray march through the whole grid for lights from above, below and low.
+    // Dense: every cell non-empty. Sparse: a ball and scattered cells in empty space, so the
+    // walk's empty-space jumps (grid_walk.h) cross slab faces and periodic wraps; also on an x
+    // split, where each rank walks a replicated grid.
     const Int3 n{13, 11, 17};
-    auto rho_of = [](int i, int j, int k) { return 0.2 + std::fmod(0.37 * i + 1.3 * j * j + 0.71 * k * k, 2.0); };
+    auto dense = [](int i, int j, int k) { return 0.2 + std::fmod(0.37 * i + 1.3 * j * j + 0.71 * k * k, 2.0); };
+    auto sparse = [&](int i, int j, int k) {
+        const double v = dense(i, j, k);
+        const bool ball = (i - 4) * (i - 4) + (j - 6) * (j - 6) + (k - 9) * (k - 9) < 10;
+        return ball || v > 2.1 ? v : 0.0;
+    };
+    int size = 1;
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    // Slabs (the pipelined chain) and, for the sparse medium, an x split (the replicated path).
+    for (int medium = 0; medium < 3; ++medium)
     for (std::array<bool, 3> periodic : {std::array<bool, 3>{false, false, false}, std::array<bool, 3>{true, true, false}}) {
-        LitMedium s = make(MPI_COMM_WORLD, n, 0.7, rho_of, periodic);
+        auto rho_of = [&](int i, int j, int k) { return medium == 0 ? dense(i, j, k) : sparse(i, j, k); };
+        const Int3 dims = medium == 2 ? Int3{size, 1, 1} : Int3{0, 0, 0};
+        LitMedium s = make(MPI_COMM_WORLD, n, 0.7, rho_of, periodic, dims);
         std::vector<double> full(static_cast<size_t>(n[0] * n[1] * n[2]));
         for_each_cell(Box{{0, 0, 0}, n}, [&](int i, int j, int k) { full[(k * n[1] + j) * n[0] + i] = rho_of(i, j, k); });
         const std::vector<DirectionalLight> lights{{"sun", normalized(Vec3{0.55, 0.35, -0.76}), {1.0}},
@@ -202,7 +217,8 @@ TEST(ExactLight, SlabChainEqualsBruteForceInAHeterogeneousMedium) {
         for (size_t l = 0; l < lights.size(); ++l)
             for_each_cell(s.d.local(), [&](int i, int j, int k) {
                 const double want = exact_tau_rho(full, n, 0.7, lights[l].w, i, j, k, periodic);
-                ASSERT_NEAR(lt.tau_rho[l](i, j, k), want, 1e-10 * (1 + want)) << lights[l].name << " " << i << "," << j << "," << k;
+                ASSERT_NEAR(lt.tau_rho[l](i, j, k), want, 1e-10 * (1 + want))
+                    << (medium ? "sparse " : "dense ") << (medium == 2 ? "x split " : "") << lights[l].name << " " << i << "," << j << "," << k;
             });
     }
 }

@@ -11,8 +11,8 @@
 #include <numbers>
 #include <random>
 
-#include "solvers/montecarlo/empty_space.h"
-#include "solvers/montecarlo/grid_walk.h"
+#include "src/core/empty_space.h"
+#include "src/core/grid_walk.h"
 #include "solvers/montecarlo/photon.h"
 #include "solvers/montecarlo/sincos.h"
 

@@ -1,8 +1,8 @@
-#include "solvers/montecarlo/empty_space.h"
+#include "src/core/empty_space.h"
 
 #include <algorithm>
 
-namespace nimbus::mc {
+namespace nimbus {
 
 std::vector<std::uint8_t> empty_space_distance(const std::array<int, 3>& n, const std::vector<float>& kappa) {
     const int nx = n[0], ny = n[1], nz = n[2];
@@ -65,4 +65,4 @@ VoxelGrid make_voxels(const std::array<int, 3>& n, const std::vector<float>& kap
     return g;
 }
 
-}  // namespace nimbus::mc
+}  // namespace nimbus

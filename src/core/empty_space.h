@@ -1,4 +1,4 @@
-// Empty-space distance for the Monte Carlo walk (grid_walk.h): for every cell, the chessboard
+// Empty-space distance for the grid walk (grid_walk.h): for every cell, the chessboard
 // distance to the nearest cell with kappa > 0, where the layer just outside the grid counts
 // as non-empty (so a skipped cube never leaves the grid). 0 for non-empty cells, capped at
 // 255. Exact two-pass chamfer transform with the 26-neighbour unit mask (Rosenfeld & Pfaltz
@@ -10,9 +10,9 @@
 #include <cstdint>
 #include <vector>
 
-#include "solvers/montecarlo/grid_walk.h"
+#include "src/core/grid_walk.h"
 
-namespace nimbus::mc {
+namespace nimbus {
 
 std::vector<std::uint8_t> empty_space_distance(const std::array<int, 3>& n, const std::vector<float>& kappa);
 
@@ -21,4 +21,4 @@ std::vector<std::uint8_t> empty_space_distance(const std::array<int, 3>& n, cons
 // whole domain (origin 0, domain n) unless the caller sets origin and domain.
 VoxelGrid make_voxels(const std::array<int, 3>& n, const std::vector<float>& kappa);
 
-}  // namespace nimbus::mc
+}  // namespace nimbus

@@ -1,4 +1,5 @@
-// Exact traversal of a piecewise-constant grid (3-D DDA) for the Monte Carlo paths. Lengths
+// Exact traversal of a piecewise-constant grid (3-D DDA): the Monte Carlo paths
+// (solvers/montecarlo) and the exact light pass's rays (solvers/light/exact_chain.h). Lengths
 // are in cell edges (h = 1), extinction kappa in 1/cell (kappa_cells = rho sigma_t h). Between
 // calls a path state is a cell plus the position inside it as fractions in [0, 1]^3, so
 // rounding never accumulates from one flight to the next (each call restarts the DDA from the
@@ -37,7 +38,7 @@
 #include "src/core/huge_pages.h"
 #include "src/core/vec3.h"
 
-namespace nimbus::mc {
+namespace nimbus {
 
 // One cell of the replicated grid of an optics group.
 static_assert(std::numeric_limits<double>::is_iec559, "the walk relies on IEEE division by zero giving inf");
@@ -45,7 +46,7 @@ static_assert(std::numeric_limits<double>::is_iec559, "the walk relies on IEEE d
 struct Voxel {
     float kappa = 0.0f;       // extinction, 1/cell
     std::uint32_t skip = 0;   // chessboard distance to the nearest non-empty cell (0 if non-empty)
-    double tally = 0.0;       // the caller's accumulator (forward.cpp: w len of the current light)
+    double tally = 0.0;       // the caller's accumulator (Monte Carlo: w len of the current light)
 };
 static_assert(sizeof(Voxel) == 16);
 
@@ -234,4 +235,4 @@ template <class OnSegment>
     }
 }
 
-}  // namespace nimbus::mc
+}  // namespace nimbus
