@@ -81,14 +81,16 @@ LightTransport exact_light_transport(const Decomposition& d, const Medium& m,
     // Slabs along z: pipelined down the chain, no replication. Other process grids: every rank
     // traces its own cells through a replicated density.
     const bool chain = d.is_slab_z();
-    const std::vector<double> rho = chain ? std::vector<double>{} : allgather_global(m.rho, d);
     const Int3 n = d.global().hi;
     const std::array<bool, 3> periodic{d.periodic(0), d.periodic(1), d.periodic(2)};
-    // The cells this rank's rays cross, prepared once for all lights (exact_chain.h).
-    RayGrid grid = chain ? make_slab_grid(d, m.rho)
-                         : make_ray_grid(d.global(), n, periodic, [&](int i, int j, int k) {
-                               return rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i];
-                           });
+    // The cells this rank's rays cross, prepared once for all lights (exact_chain.h): its slab,
+    // or the whole replicated domain (24 bytes per cell once the gathered copy is released).
+    RayGrid grid = chain ? make_slab_grid(d, m.rho) : [&] {
+        const std::vector<double> rho = allgather_global(m.rho, d);
+        return make_ray_grid(d.global(), n, periodic, [&](int i, int j, int k) {
+            return rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i];
+        });
+    }();
     LightTransport lt;
     lt.lights = lights;
     Progress progress("light pass (exact)", static_cast<double>(lights.size()), d.rank() == 0);
@@ -111,8 +113,9 @@ LightTransport exact_light_transport(const Decomposition& d, const Medium& m,
         progress.update(static_cast<double>(lt.tau_rho.size()));
     }
     progress.finish();
+    const double grid_bytes = static_cast<double>(grid.voxels.voxel.size()) * (sizeof(Voxel) + sizeof(double));
     report.values()["light"] = {{"terms", lights.size()}, {"method", chain ? "exact (slab chain)" : "exact (replicated)"},
-                                {"replicated_memory_gb", 8e-9 * static_cast<double>(rho.size())}};
+                                {"replicated_memory_gb", chain ? 0.0 : 1e-9 * grid_bytes}};
     return lt;
 }
 
