@@ -290,36 +290,10 @@ TEST(DomScheme, DiamondOneAndTwoRanksAgree) {
 // on this cube: 11, 15, 34 iterations at kappa h = 0.5, 1, 1.5; a change of ~1.3 per iteration
 // at 2 and 6.25), so the model refuses diamond + dsa on such cells with an Error naming the
 // fix: DSA-preconditioned GMRES, which converges (7 .. 26 iterations over the same range).
-struct CubeRun {
-    bool converged = false;
-    int iterations = 0;
-    std::vector<double> history;
-    std::string error;
-};
+using test::CubeRun;
 CubeRun thick_cube(double tau, const std::string& scheme, const std::string& method, int max_iterations) {
     const int n = 12;
-    test::DomWorld w(MPI_COMM_WORLD, {n, n, n}, tau / n, BandOptics{"gray", 1.0, 0.999, 0.0});
-    w.add_sun_from_top({0.3, 0.2, -1.0});
-    DomOptions o;
-    o.order = 4;
-    o.legendre_order = 0;
-    o.iteration = method;
-    o.tolerance = 1e-6;
-    o.max_iterations = max_iterations;
-    o.scheme = scheme;
-    CubeRun r;
-    DiffuseSolution sol;
-    try {
-        make_dom_model(o)->solve(w.ctx(), sol);
-        r.converged = true;
-    } catch (const Error& e) {
-        r.error = e.what();
-    }
-    const auto& dom = w.report.values()["dom"];
-    if (!dom["bands"].empty()) {
-        r.iterations = dom["bands"][0]["iterations"].get<int>();
-        r.history = dom["bands"][0]["history"].get<std::vector<double>>();
-    }
+    const CubeRun r = test::solve_thick_cube(n, tau, 0.999, scheme, method, max_iterations);
     if (test::world_rank() == 0) {
         std::printf("cube tau %.0f (kappa h %.2f), a 0.999, %s + %s: %s after %d iterations%s\n", tau, tau / n,
                     scheme.c_str(), method.c_str(), r.converged ? "converged" : "NOT converged", r.iterations,
