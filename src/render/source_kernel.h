@@ -4,7 +4,9 @@
 //   emission, emission_absorption (Max 1995 §3 eq. 4, §4.2):  J = C kappa
 //   single_unshadowed (§5 eq. 9-10):      J = kappa a Σ_l E0_l p(mu_l)
 //   scattering (§6 eq. 13-14 + DESIGN §1): J = kappa a [Σ_l E0_l T_l p(mu_l) + fluence/(4π)
-//                                                        + (3 g / 4π) F·w_out]
+//                                                        + (3 g / 4π) F·w_out] + q
+//   (both scattering modes) q = power / 4π, the isotropic emission of the scene's volume
+//   sources in the cell ([[sources]], src/scene/emission.h; 0 where rho = 0)
 // with w_out the unit direction toward the camera (the radiance's travel direction, -d for a
 // view ray d), mu_l = w_l · w_out, w_l the light's travel direction, p the HG phase function
 // normalized to 1 over the sphere, T_l = exp(-sigma_t tau_rho_l).
@@ -19,6 +21,9 @@ namespace nimbus {
 
 // Max 1995 eq. 4: the particle model's glow C per unit projected area gives J = C kappa.
 inline double emission_source(double C, double kappa) { return C * kappa; }
+
+// Radiance source of isotropic volume emission of `power` W/m³ (all directions): q = power / 4π.
+inline double emission_radiance(double power) { return power * (0.25 / std::numbers::pi); }
 
 // The P1 diffuse field scattered toward w_out (DESIGN §1): ∫ p I_d dw' = U + (3g/4π) F·w_out,
 // with U = fluence/(4π). `has_flux` false drops the F term.

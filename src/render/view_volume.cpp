@@ -7,6 +7,7 @@
 #include "src/core/error.h"
 #include "src/physics/lights.h"
 #include "src/render/source_kernel.h"
+#include "src/scene/emission.h"
 
 namespace nimbus {
 namespace {
@@ -108,6 +109,9 @@ ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, con
     const bool flux = diffuse && !in.diffuse.flux.empty();
     const auto& lights = in.light.lights;
     std::vector<double> J(static_cast<size_t>(nb));
+    // The scene's volume sources ([[sources]], emission.h) add their isotropic radiance
+    // q_b = power_b / 4π to J in the physical (scattering) modes.
+    const std::vector<VolumeSource> sources = scatters ? volume_sources(in.scene) : std::vector<VolumeSource>{};
     std::vector<bool> same_g(static_cast<size_t>(nb), false), same_sigma(static_cast<size_t>(nb), false);
     for (size_t b = 1; b < static_cast<size_t>(nb); ++b) {
         same_g[b] = m.bands[b].g == m.bands[b - 1].g;
@@ -153,6 +157,7 @@ ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, con
                     J[bb] += diffuse_inscatter(in.diffuse.fluence[bb](i, j, k), o.g, flux, F, w_out);
                 }
                 J[bb] *= rho * o.sigma_t * o.albedo;
+                if (!sources.empty()) J[bb] += emission_radiance(emitted_power(sources, m.rho, b, i, j, k));
             }
         }
         for (int b = 0; b < nb; ++b) cell[1 + b] = static_cast<float>(J[static_cast<size_t>(b)]);
