@@ -33,7 +33,6 @@ public:
         {
             ScopedTimer timer(ctx.report, "montecarlo/trace");
             const std::vector<VolumeSource> sources = volume_sources(ctx.scene);
-            has_sources_ = !sources.empty();
             check_volume_sources(sources, ctx.medium.rho, ctx.decomp);
             r = mc::trace_forward(ctx.decomp, ctx.medium, ctx.light.lights, sources, opt_);
         }
@@ -89,9 +88,7 @@ public:
                   r.replicated_gb);
     }
 
-    // The path tracer knows only the light terms: with volume sources the pipeline's ray
-    // caster renders the image from the traced fluence instead (decided after solve()).
-    bool renders_image() const override { return opt_.image && !has_sources_; }
+    bool renders_image() const override { return opt_.image; }
 
     Image render(const SolveContext& ctx) override {
         ScopedTimer timer(ctx.report, "montecarlo/render");
@@ -100,7 +97,6 @@ public:
 
 private:
     MonteCarloOptions opt_;
-    bool has_sources_ = false;
 };
 
 }  // namespace

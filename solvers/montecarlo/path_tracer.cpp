@@ -15,6 +15,8 @@
 #include "src/core/progress.h"
 #include "src/physics/phase.h"
 #include "src/render/camera.h"
+#include "src/render/source_kernel.h"
+#include "src/scene/emission.h"
 
 namespace nimbus::mc {
 
@@ -77,6 +79,21 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
         for (size_t c = 0; c < rho.size(); ++c) k[c] = static_cast<float>(rho[c] * m.bands[static_cast<size_t>(b)].sigma_t * m.grid.h);
         voxels[static_cast<size_t>(b)] = make_voxels(n, k);
     }
+    // Volume sources: q h per padded cell index and band (q = power / 4π, W/m³/sr, in covered
+    // cells with density), so that q h len(cells) is the radiance a segment emits.
+    const std::vector<VolumeSource> sources = volume_sources(scene);
+    std::vector<std::vector<double>> q_h(sources.empty() ? 0 : static_cast<size_t>(nb));
+    for (int b = 0; b < static_cast<int>(q_h.size()); ++b) {
+        std::vector<double>& q = q_h[static_cast<size_t>(b)];
+        q.assign(static_cast<size_t>(voxels[static_cast<size_t>(b)].padded_cells()), 0.0);
+        const GridView g = voxels[static_cast<size_t>(b)].view(periodic);
+        for (const VolumeSource& src : sources)
+            for_each_cell(src.cells, [&](int i, int j, int k) {
+                if (rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] > 0)
+                    q[static_cast<size_t>(g.index({i, j, k}))] +=
+                        emission_radiance(src.power[static_cast<size_t>(b)]) * m.grid.h;
+            });
+    }
 
     // Per pixel and band: sum and sum of squares of the sample radiance; per pixel: alpha.
     const std::int64_t pixels = static_cast<std::int64_t>(W) * H, total = pixels * spp;
@@ -110,8 +127,15 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
             } else {
                 double beta = 1.0;
                 bool scattered = false;
+                const double* q = q_h.empty() ? nullptr : q_h[static_cast<size_t>(b)].data();
                 for (;;) {
-                    const int face = walk_optical_depth(g, s, -std::log(rng.uniform()), [](std::int64_t, double) {});
+                    // Emission seen along the flight (track length: the flight reaches x with
+                    // probability T(x), so sum q len = the expected integral of q T).
+                    const double tau = -std::log(rng.uniform());
+                    const int face = q ? walk_optical_depth(g, s, tau, [&](std::int64_t idx, double len) {
+                                             L += beta * q[idx] * len;
+                                         })
+                                       : walk_optical_depth(g, s, tau, [](std::int64_t, double) {});
                     if (face >= 0) {
                         if (!scattered && !ground) L += beta * band_value(scene.background.color, b);
                         break;

@@ -6,7 +6,9 @@
 // every light term's single-scattered radiance through a shadow ray,
 //   L += beta a E0_l p(w_l · (-d)) exp(-∫ kappa ds toward -w_l),
 // then the path continues in an HG-sampled direction (Russian roulette below the roulette
-// weight). A view ray that leaves unscattered sees the background colour; scattered paths that
+// weight). Volume sources ([[sources]]) add their emission along every flight by track length,
+//   L += beta q len,   q = power / 4π in covered cells with density
+// (a flight reaches x with probability T(x), so this estimates the integral of q T). A view ray that leaves unscattered sees the background colour; scattered paths that
 // leave see nothing (the background is not a light source, as in the forward tracer).
 // alpha = 1 - T along the view ray (first band).
 //

@@ -1,10 +1,13 @@
 // The Monte Carlo model through the ScatteringModel interface: solve() fills fluence and its
 // standard error and reports its figures of merit; render() path-traces the camera image
 // (pure absorber: each sample sees the background with probability T, so the pixel mean is
-// background x (1 - alpha)); the image does not depend on the rank count.
+// background x (1 - alpha); with a volume source over a uniform absorber it adds
+// q (1 - T) / kappa, and with scattering the source's image adds to the sun's sample by
+// sample); the image does not depend on the rank count.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 
 #include "solvers/montecarlo/montecarlo.h"
 #include "src/core/error.h"
@@ -19,8 +22,10 @@ struct World {
     Medium m;
     LightTransport light;
     Report report;
-    World(MPI_Comm comm, double albedo) : d(comm, {8, 8, 8}) {
+    // uniform: density 0.6 everywhere (else 0.5-0.7 by cell); h: cell edge, m
+    World(MPI_Comm comm, double albedo, bool uniform = false, double h = 1.0) : d(comm, {8, 8, 8}) {
         scene.grid.n = {8, 8, 8};
+        scene.grid.cell_size = h;
         scene.camera.position = {0.5, 0.5, 3.0};
         scene.camera.look_at = {0.5, 0.5, 0.0};
         scene.camera.up = {0, 1, 0};
@@ -29,9 +34,11 @@ struct World {
         scene.camera.height = 4;
         scene.background.color = {0.5};
         m.grid.n = {8, 8, 8};
-        m.grid.h = 1.0;
+        m.grid.h = h;
         m.rho = Field<double>(d.local(), 1, 1, 0.0);
-        for_each_cell(d.local(), [&](int i, int j, int k) { m.rho(i, j, k) = 0.5 + 0.1 * ((i + 2 * j + k) % 3); });
+        for_each_cell(d.local(), [&](int i, int j, int k) {
+            m.rho(i, j, k) = uniform ? 0.6 : 0.5 + 0.1 * ((i + 2 * j + k) % 3);
+        });
         m.bands = {BandOptics{"gray", 0.3, albedo, 0.6}};
         light.lights = {DirectionalLight{"sun", normalized(Vec3{0.2, 0.1, -1.0}), {1.0}}};
     }
@@ -86,6 +93,61 @@ TEST(MonteCarloModel, AbsorberImageIsBackgroundTimesTransmittance) {
         }
     const double rms = std::sqrt(z2 / 24.0);
     EXPECT_LT(rms, 1.6);
+}
+
+// Pure absorber of uniform kappa with a source over the whole domain: along a chord of length
+// L, I = I0 T + q (1 - T) / kappa, T = e^{-kappa L} = 1 - alpha (Max 1995 eq. 8 with C = q/kappa).
+TEST(MonteCarloModel, VolumeSourceGlowsInTheImage) {
+    const double h = 0.5;  // m: the emission's length scale is tested too
+    World w(MPI_COMM_WORLD, 0.0, true, h);
+    const double power = 2.0, kappa = 0.6 * 0.3, q = power / (4 * std::numbers::pi);
+    w.scene.sources = {SourceSpec{{0, 0, 0}, {8 * h, 8 * h, 8 * h}, {power}}};
+    MonteCarloOptions o;
+    o.image = true;
+    o.samples_per_pixel = 4000;
+    auto model = make_montecarlo_model(o);
+    ASSERT_TRUE(model->renders_image());
+    const Image img = model->render(w.ctx());
+    if (test::world_rank() != 0) return;
+    double z2 = 0.0;
+    for (int y = 0; y < 4; ++y)
+        for (int x = 0; x < 6; ++x) {
+            const float* p = img.pixel(x, y);
+            const double T = 1.0 - p[3];
+            EXPECT_NEAR(T, std::exp(-kappa * 8 * h), 1e-4);  // straight down through 8 cells
+            const double expect = 0.5 * T + q * (1.0 - T) / kappa;
+            const double se = img.stderr_rgb[static_cast<size_t>(y * 6 + x) * 3];
+            const double z = (p[0] - expect) / se;
+            z2 += z * z;
+            EXPECT_LT(std::abs(z), 4.0) << p[0] << " vs " << expect << " (se " << se << ")";
+        }
+    EXPECT_LT(std::sqrt(z2 / 24.0), 1.6);
+}
+
+// The emission tally draws no random numbers, so with the same seed each sample's path is the
+// same with and without the source: image(sun + source) = image(sun) + image(source alone) up
+// to round-off, including the emission seen along scattered paths.
+TEST(MonteCarloModel, VolumeSourceAddsToTheSunlitImage) {
+    World sun(MPI_COMM_WORLD, 0.9), both(MPI_COMM_WORLD, 0.9), glow(MPI_COMM_WORLD, 0.9);
+    const SourceSpec box{{2, 1, 3}, {6, 7, 8}, {1.5}};
+    both.scene.sources = {box};
+    glow.scene.sources = {box};
+    glow.light.lights[0].E0 = {0.0};
+    sun.scene.background.color = both.scene.background.color = glow.scene.background.color = {0.0};
+    MonteCarloOptions o;
+    o.image = true;
+    o.samples_per_pixel = 64;
+    const Image a = make_montecarlo_model(o)->render(sun.ctx());
+    const Image b = make_montecarlo_model(o)->render(both.ctx());
+    const Image c = make_montecarlo_model(o)->render(glow.ctx());
+    if (test::world_rank() != 0) return;
+    double glow_sum = 0.0;
+    for (size_t i = 0; i < a.rgba.size(); ++i) {
+        if (i % 4 == 3) continue;  // alpha
+        EXPECT_NEAR(b.rgba[i], a.rgba[i] + c.rgba[i], 1e-5 * (a.rgba[i] + c.rgba[i]) + 1e-12);
+        glow_sum += c.rgba[i];
+    }
+    EXPECT_GT(glow_sum, 0.0);
 }
 
 TEST(MonteCarloModel, ImageIndependentOfRankCount) {
