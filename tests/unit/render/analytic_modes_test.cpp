@@ -31,11 +31,7 @@ Scene three_band_scene(RenderMode mode) {
     s.render.mode = mode;
     s.render.emission_color = {0.9, 0.5, 0.2};
     s.background.color = {0.1, 0.2, 0.3};
-    s.camera.position = {1.6, -0.7, 1.4};  // oblique: rays cross every slab boundary
-    s.camera.look_at = {0.5, 0.5, 0.5};
-    s.camera.fov_deg = 55;
-    s.camera.width = 32;
-    s.camera.height = 24;
+    test::oblique_camera(s);
     return s;
 }
 

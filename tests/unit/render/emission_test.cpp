@@ -23,11 +23,7 @@ Scene base_scene(const Grid& g) {
     s.grid.n = {g.n[0], g.n[1], g.n[2]};
     s.grid.cell_size = g.h;  // unit m
     s.bands = {BandOptics{"r", 0.5, 0.3, 0.8}, BandOptics{"g", 1.0, 0.6, 0.8}, BandOptics{"b", 2.0, 0.9, 0.8}};
-    s.camera.position = {1.6, -0.7, 1.4};  // oblique: rays cross every slab boundary
-    s.camera.look_at = {0.5, 0.5, 0.5};
-    s.camera.fov_deg = 55;
-    s.camera.width = 32;
-    s.camera.height = 24;
+    test::oblique_camera(s);
     return s;
 }
 

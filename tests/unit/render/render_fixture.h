@@ -61,6 +61,16 @@ RenderWorld make_world(MPI_Comm comm, const Grid& g, const Scene& scene, Rho&& r
     return w;
 }
 
+// The 32 x 24 oblique view of the unit-ish test domains: from (1.6, -0.7, 1.4) (domain
+// fractions) towards the centre, so rays cross every slab boundary.
+inline void oblique_camera(Scene& s) {
+    s.camera.position = {1.6, -0.7, 1.4};
+    s.camera.look_at = {0.5, 0.5, 0.5};
+    s.camera.fov_deg = 55;
+    s.camera.width = 32;
+    s.camera.height = 24;
+}
+
 inline Image render(const Scene& scene, const RenderWorld& w) {
     Report report;
     return render_image(RenderInputs{scene, w.medium, w.light, w.diffuse}, *w.d, report);
