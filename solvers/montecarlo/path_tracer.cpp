@@ -82,16 +82,16 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
     // Volume sources: q h per padded cell index and band (q = power / 4π, W/m³/sr, in covered
     // cells with density), so that q h len(cells) is the radiance a segment emits.
     const std::vector<VolumeSource> sources = volume_sources(scene);
-    std::vector<std::vector<double>> q_h(sources.empty() ? 0 : static_cast<size_t>(nb));
+    std::vector<std::vector<float>> q_h(sources.empty() ? 0 : static_cast<size_t>(nb));  // 4 B per cell and band
     for (int b = 0; b < static_cast<int>(q_h.size()); ++b) {
-        std::vector<double>& q = q_h[static_cast<size_t>(b)];
-        q.assign(static_cast<size_t>(voxels[static_cast<size_t>(b)].padded_cells()), 0.0);
+        std::vector<float>& q = q_h[static_cast<size_t>(b)];
+        q.assign(static_cast<size_t>(voxels[static_cast<size_t>(b)].padded_cells()), 0.0f);
         const GridView g = voxels[static_cast<size_t>(b)].view(periodic);
         for (const VolumeSource& src : sources)
             for_each_cell(src.cells, [&](int i, int j, int k) {
                 if (rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] > 0)
                     q[static_cast<size_t>(g.index({i, j, k}))] +=
-                        emission_radiance(src.power[static_cast<size_t>(b)]) * m.grid.h;
+                        static_cast<float>(emission_radiance(src.power[static_cast<size_t>(b)]) * m.grid.h);
             });
     }
 
@@ -127,7 +127,7 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
             } else {
                 double beta = 1.0;
                 bool scattered = false;
-                const double* q = q_h.empty() ? nullptr : q_h[static_cast<size_t>(b)].data();
+                const float* q = q_h.empty() ? nullptr : q_h[static_cast<size_t>(b)].data();
                 for (;;) {
                     // Emission seen along the flight (track length: the flight reaches x with
                     // probability T(x), so sum q len = the expected integral of q T).
