@@ -17,7 +17,10 @@ FaceInput Assembler::neighbor(int r, int axis, int s, const Int3& c, Int3& nb, b
     FaceInput in;
     in.kappa_floor = kappa_floor_;
     const bool outside = nb[axis] < 0 || nb[axis] >= p_.n[axis];
-    if (outside && !p_.periodic[axis]) return in;  // domain boundary: Marshak
+    if (outside && !p_.periodic[axis]) {  // domain boundary: Marshak, or a mirror
+        in.mirror = p_.reflective[static_cast<size_t>(2 * axis + (s > 0 ? 1 : 0))];
+        return in;
+    }
     if (p_.periodic[axis] && p_.n[axis] == 1) {
         skip = true;
         return in;
@@ -58,7 +61,8 @@ bool Assembler::has_marshak_face(int i, int j, int k) const {
         for (int s : {-1, +1}) {
             Int3 nb;
             bool skip = false;
-            if (!neighbor(-1, axis, s, c, nb, skip).neighbor_full && !skip) return true;
+            const FaceInput in = neighbor(-1, axis, s, c, nb, skip);
+            if (!in.neighbor_full && !in.mirror && !skip) return true;
         }
     return false;
 }

@@ -33,6 +33,7 @@ namespace nimbus::diffusion {
 struct FaceInput {
     double kappa_floor = 0.0; // 1/m, lower bound of kappa_tr in D
     bool neighbor_full = false;
+    bool mirror = false;      // a reflective domain face: no net flux (DiffusionProblem::reflective)
     double kappa_tr_n = 0.0;  // kappa_tr of the neighbour (1/m), used when full
     double G_n = 0.0;         // neighbour's G component along this face's axis (W/m²/sr units of U)
 };
@@ -53,6 +54,7 @@ inline double diffusion_coefficient(double kappa_tr, double kappa_floor) {
 // component along that axis. The outward normal of the face is s·e_axis.
 inline FaceTerms face_terms(double kappa_tr_p, double G_p, int s, const FaceInput& nb, double h) {
     FaceTerms t;
+    if (nb.mirror) return t;  // F·n = 0: no term in the cell balance
     if (nb.neighbor_full) {
         const double D_f = diffusion_coefficient(0.5 * (kappa_tr_p + nb.kappa_tr_n), nb.kappa_floor);
         const double G_f = 0.5 * (G_p + nb.G_n);
@@ -72,6 +74,7 @@ inline FaceTerms face_terms(double kappa_tr_p, double G_p, int s, const FaceInpu
 // interior face  phi = G_f - D_f (U_hi - U_lo)/h; Marshak face phi·n_out = U_f / 2.
 inline double face_flux(double kappa_tr_p, double G_p, double U_p, int s, const FaceInput& nb,
                         double U_n, double h) {
+    if (nb.mirror) return 0.0;
     if (nb.neighbor_full) {
         const double D_f = diffusion_coefficient(0.5 * (kappa_tr_p + nb.kappa_tr_n), nb.kappa_floor);
         const double G_f = 0.5 * (G_p + nb.G_n);

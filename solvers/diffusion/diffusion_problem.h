@@ -19,6 +19,9 @@ struct DiffusionProblem {
     double h = 1.0;                    // cell edge, metres
     Int3 n{0, 0, 0};                   // global cells per axis
     std::array<bool, 3> periodic{false, false, false};
+    // Domain faces (x-, x+, y-, y+, z-, z+) that are mirrors: zero net flux through them
+    // (DOM's DSA on specularly reflective faces) instead of the Marshak condition.
+    std::array<bool, 6> reflective{};
     Field<double> kappa_tr;            // 1/m, owned + 1 ghost, halo-exchanged; 0 = empty cell
     Field<double> sigma_a;             // rho * sigma_a, 1/m, owned (ghosts unused)
     std::vector<Field<double>> Q0;     // per rhs: (1/4π)∫Q dw, owned

@@ -20,12 +20,18 @@ double global_norm(const std::vector<double>& v, MPI_Comm comm) {
 
 }  // namespace
 
-DiffusionSynthetic::DiffusionSynthetic(const Decomposition& d, const BandProblem& p, double tolerance)
+DiffusionSynthetic::DiffusionSynthetic(const Decomposition& d, const BandProblem& p, double tolerance,
+                                       const std::array<bool, 6>& reflective)
     : d_(d), p_(p) {
     const Box& own = d.local();
     dp_.h = p.h;
     dp_.n = d.global().hi;
     dp_.periodic = {d.periodic(0), d.periodic(1), d.periodic(2)};
+    // Zero current on the LOW mirror faces only: the sweep reflects those within the same sweep
+    // (octant order, transport_sweep.h), but a HIGH mirror face returns the previous sweep's
+    // light, which the diffusion correction does not model; zero current there made DSA
+    // diverge (closed box, albedo >= 0.8), so high mirror faces keep the Marshak condition.
+    for (size_t f = 0; f < 6; f += 2) dp_.reflective[f] = reflective[f];
     dp_.kappa_tr = Field<double>(own, 1, 1, 0.0);
     dp_.sigma_a = Field<double>(own, 0, 1, 0.0);
     // D = 1/(3 kappa_tr) + h/4 (dsa.h): kappa_tr of the diffusion assembly is 1/(3 D).

@@ -4,7 +4,10 @@
 // isotropic part is estimated by the diffusion problem
 //   -∇·(D ∇δ) + sigma_a δ = sigma_s (phi^{l+1/2} - phi^l),   phi^{l+1} = phi^{l+1/2} + δ,
 // with the Marshak condition (homogeneous: the error has no incoming light) at empty cells and
-// the domain boundary. sigma_s = kappa* a*, and
+// the domain boundary, and zero net current on the specularly reflective LOW domain faces (a
+// mirror returns all that leaves: n·F = 0); high mirror faces, reflected one sweep late, keep
+// Marshak (dsa.cpp). Closed reflective box at albedo 0.99: 524 iterations instead of 697.
+// sigma_s = kappa* a*, and
 //   D = 1/(3 kappa_tr) + h/4,   kappa_tr = kappa* (1 - a* chi*_1) = kappa (1 - a g).
 // The h/4 is the step scheme's own numerical diffusion: upwinding adds |mu_a| h/2 ∂²_a psi per
 // direction, and for nearly isotropic psi (1/4π) Σ_n w_n |mu_a,n| h/2 = h/4 per axis. In thick
@@ -22,6 +25,7 @@
 // per-iteration re-assembly and setup before).
 #pragma once
 
+#include <array>
 #include <memory>
 #include <vector>
 
@@ -37,8 +41,10 @@ namespace nimbus::dom {
 
 class DiffusionSynthetic {
 public:
-    // Collective. p must outlive this object.
-    DiffusionSynthetic(const Decomposition& d, const BandProblem& p, double tolerance);
+    // Collective. p must outlive this object. reflective: the sweep's mirror faces
+    // (SweepBoundary::reflective, x-, x+, y-, y+, z-, z+).
+    DiffusionSynthetic(const Decomposition& d, const BandProblem& p, double tolerance,
+                       const std::array<bool, 6>& reflective = {});
     ~DiffusionSynthetic();
     DiffusionSynthetic(const DiffusionSynthetic&) = delete;
     DiffusionSynthetic& operator=(const DiffusionSynthetic&) = delete;

@@ -190,7 +190,7 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     std::unique_ptr<DiffusionSynthetic> dsa;
     if (preconditioner == GmresPreconditioner::dsa) {
         ScopedTimer t(report, "dsa_setup");
-        dsa = std::make_unique<DiffusionSynthetic>(d, p, std::min(1e-4, 1e-2 * tolerance));
+        dsa = std::make_unique<DiffusionSynthetic>(d, p, std::min(1e-4, 1e-2 * tolerance), sweeper.boundary().reflective);
         kc.dsa = dsa.get();
         kc.r0 = Field<double>(own, 0, 1, 0.0);
     }

@@ -59,7 +59,7 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
     std::unique_ptr<DiffusionSynthetic> dsa;
     if (method == "dsa") {
         ScopedTimer t(report, "dsa_setup");
-        dsa = std::make_unique<DiffusionSynthetic>(d, p, 1e-4);
+        dsa = std::make_unique<DiffusionSynthetic>(d, p, 1e-4, sweeper.boundary().reflective);
     }
     const double y00 = 1.0 / std::sqrt(4.0 * std::acos(-1.0));
     Field<double> phi(own, 0, ang.nmom, 0.0), s(own, 0, ang.nmom, 0.0);

@@ -111,6 +111,7 @@ public:
     // Collective. out is (re)allocated on d.local() when needed and overwritten.
     void sweep(const SweepSource& src, SweepOutput& out);
     const SweepTiming& timing() const { return timing_; }
+    const SweepBoundary& boundary() const { return bc_; }
     // Uniform sky radiance L (W/m²/sr) of the current band for SweepBoundary::sky.
     void set_sky_radiance(double L) { sky_radiance_ = L; }
     // Forgets the lagged reflected planes (zero), e.g. before a new band.
