@@ -2,12 +2,10 @@
 
 #include <cmath>
 
+#include "src/scene/optics_groups.h"
+
 namespace nimbus::diffusion {
 namespace {
-
-bool same_optics(const BandOptics& a, const BandOptics& b) {
-    return a.sigma_t == b.sigma_t && a.albedo == b.albedo && a.g == b.g;
-}
 
 // E0 of `band` = scale * E0 of `ref` for every light, to round-off?
 bool proportional(const std::vector<DirectionalLight>& lights, int band, int ref, double& scale) {

@@ -19,32 +19,9 @@
 #include "src/core/log.h"
 #include "src/core/progress.h"
 #include "src/core/report.h"
+#include "src/scene/optics_groups.h"
 
 namespace nimbus::mc {
-
-namespace {
-
-// Bands that share (sigma_t, albedo, g) are traced once.
-struct OpticsGroup {
-    BandOptics optics;
-    std::vector<int> bands;
-};
-
-std::vector<OpticsGroup> group_bands(const std::vector<BandOptics>& bands) {
-    std::vector<OpticsGroup> groups;
-    for (int b = 0; b < static_cast<int>(bands.size()); ++b) {
-        const BandOptics& o = bands[static_cast<size_t>(b)];
-        auto it = std::find_if(groups.begin(), groups.end(), [&](const OpticsGroup& g) {
-            return g.optics.sigma_t == o.sigma_t && g.optics.albedo == o.albedo && g.optics.g == o.g;
-        });
-        if (it == groups.end()) groups.push_back({o, {b}}); else it->bands.push_back(b);
-    }
-    return groups;
-}
-
-}  // namespace
-
-
 
 std::vector<std::int64_t> photons_per_light(const std::vector<double>& power, std::int64_t total,
                                             int batches) {
@@ -102,7 +79,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     const int nb = medium.nbands();
     const int B = opt.batches;
     const double h = medium.grid.h;
-    const std::vector<OpticsGroup> groups = group_bands(medium.bands);
+    const std::vector<OpticsGroup> groups = group_by_optics(medium.bands);  // traced once per group
     const int nq = settings.tally_reduced ? 4 : 2;  // per band: sum, sumsq (+ reduced sum, sumsq)
     for (const OpticsGroup& g : groups)
         if (g.bands.size() > 64) throw Error("Monte Carlo supports at most 64 bands with equal optics");

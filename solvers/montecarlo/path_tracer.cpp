@@ -1,5 +1,6 @@
 #include "solvers/montecarlo/path_tracer.h"
 
+#include <fmt/format.h>
 #include <mpi.h>
 
 #include <algorithm>
@@ -8,6 +9,7 @@
 
 #include "src/core/empty_space.h"
 #include "solvers/montecarlo/forward.h"
+#include "src/core/error.h"
 #include "src/core/gather.h"
 #include "src/core/grid_walk.h"
 #include "solvers/montecarlo/philox.h"
@@ -17,6 +19,7 @@
 #include "src/render/camera.h"
 #include "src/render/source_kernel.h"
 #include "src/scene/emission.h"
+#include "src/scene/optics_groups.h"
 
 namespace nimbus::mc {
 
@@ -60,6 +63,8 @@ bool enter_domain(const Grid& grid, const GridView& g, const Vec3& x, const Vec3
 
 }  // namespace
 
+constexpr int kMaxBands = 64;
+
 Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
     const Decomposition& d = ctx.decomp;
     const Medium& m = ctx.medium;
@@ -73,11 +78,16 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
     if (ground && d.rank() == 0) log::warn("montecarlo image: background 'ground' is not modelled, rendered black");
 
     const std::vector<double> rho = allgather_global(m.rho, d);
-    std::vector<VoxelGrid> voxels(static_cast<size_t>(nb));
-    for (int b = 0; b < nb; ++b) {
+    // Bands with equal optics share their paths (one walk per group, src/scene/optics_groups.h).
+    const std::vector<OpticsGroup> groups = group_by_optics(m.bands);
+    for (const OpticsGroup& G : groups)
+        if (G.bands.size() > static_cast<size_t>(kMaxBands))
+            throw Error(fmt::format("montecarlo image: at most {} bands with equal optics", kMaxBands));
+    std::vector<VoxelGrid> voxels(groups.size());
+    for (size_t gi = 0; gi < groups.size(); ++gi) {
         std::vector<float> k(rho.size());
-        for (size_t c = 0; c < rho.size(); ++c) k[c] = static_cast<float>(rho[c] * m.bands[static_cast<size_t>(b)].sigma_t * m.grid.h);
-        voxels[static_cast<size_t>(b)] = make_voxels(n, k);
+        for (size_t c = 0; c < rho.size(); ++c) k[c] = static_cast<float>(rho[c] * groups[gi].optics.sigma_t * m.grid.h);
+        voxels[gi] = make_voxels(n, k);
     }
     // Volume sources: q h per padded cell index and band (q = power / 4π, W/m³/sr, in covered
     // cells with density), so that q h len(cells) is the radiance a segment emits.
@@ -85,8 +95,8 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
     std::vector<std::vector<float>> q_h(sources.empty() ? 0 : static_cast<size_t>(nb));  // 4 B per cell and band
     for (int b = 0; b < static_cast<int>(q_h.size()); ++b) {
         std::vector<float>& q = q_h[static_cast<size_t>(b)];
-        q.assign(static_cast<size_t>(voxels[static_cast<size_t>(b)].padded_cells()), 0.0f);
-        const GridView g = voxels[static_cast<size_t>(b)].view(periodic);
+        q.assign(static_cast<size_t>(voxels[0].padded_cells()), 0.0f);  // every group's grid has this layout
+        const GridView g = voxels[0].view(periodic);
         for (const VolumeSource& src : sources)
             for_each_cell(src.cells, [&](int i, int j, int k) {
                 if (rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] > 0)
@@ -115,29 +125,37 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
             alpha[pix] = 1.0 - T;
         }
         last_pixel = pix;
-        for (int b = 0; b < nb; ++b) {
-            PathRng rng(opt.seed, 0x80000000u + static_cast<std::uint32_t>(b), static_cast<std::uint64_t>(si));
-            const GridView g = voxels[static_cast<size_t>(b)].view(periodic);
-            const BandOptics& o = m.bands[static_cast<size_t>(b)];
+        for (size_t gi = 0; gi < groups.size(); ++gi) {
+            // The group's bands differ only in their light: one path, a radiance per band.
+            const std::vector<int>& bands = groups[gi].bands;
+            const int nbg = static_cast<int>(bands.size());
+            PathRng rng(opt.seed, 0x80000000u + static_cast<std::uint32_t>(bands[0]), static_cast<std::uint64_t>(si));
+            const GridView g = voxels[gi].view(periodic);
+            const BandOptics& o = groups[gi].optics;
             const Vec3 dir = cam.direction(px + rng.uniform(), py + rng.uniform());
-            double L = 0.0;
+            double L[kMaxBands]{};
+            auto background = [&](double weight) {
+                if (ground) return;
+                for (int q = 0; q < nbg; ++q) L[q] += weight * band_value(scene.background.color, bands[static_cast<size_t>(q)]);
+            };
             PathState s;
             if (!enter_domain(m.grid, g, cam.position(), dir, s)) {
-                L = ground ? 0.0 : band_value(scene.background.color, b);
+                background(1.0);
             } else {
                 double beta = 1.0;
                 bool scattered = false;
-                const float* q = q_h.empty() ? nullptr : q_h[static_cast<size_t>(b)].data();
                 for (;;) {
                     // Emission seen along the flight (track length: the flight reaches x with
                     // probability T(x), so sum q len = the expected integral of q T).
                     const double tau = -std::log(rng.uniform());
-                    const int face = q ? walk_optical_depth(g, s, tau, [&](std::int64_t idx, double len) {
-                                             L += beta * q[idx] * len;
-                                         })
-                                       : walk_optical_depth(g, s, tau, [](std::int64_t, double) {});
+                    const int face = q_h.empty() ? walk_optical_depth(g, s, tau, [](std::int64_t, double) {})
+                                                 : walk_optical_depth(g, s, tau, [&](std::int64_t idx, double len) {
+                                                       for (int q = 0; q < nbg; ++q)
+                                                           L[q] += beta * q_h[static_cast<size_t>(bands[static_cast<size_t>(q)])]
+                                                                             [static_cast<size_t>(idx)] * len;
+                                                   });
                     if (face >= 0) {
-                        if (!scattered && !ground) L += beta * band_value(scene.background.color, b);
+                        if (!scattered) background(beta);
                         break;
                     }
                     scattered = true;
@@ -146,8 +164,8 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
                     for (const DirectionalLight& l : lights) {
                         PathState shadow = s;
                         shadow.d = -l.w;
-                        L += beta * l.E0[static_cast<size_t>(b)] * hg_phase(o.g, -dot(l.w, s.d)) *
-                             std::exp(-optical_depth(g, shadow));
+                        const double c = beta * hg_phase(o.g, -dot(l.w, s.d)) * std::exp(-optical_depth(g, shadow));
+                        for (int q = 0; q < nbg; ++q) L[q] += c * l.E0[static_cast<size_t>(bands[static_cast<size_t>(q)])];
                     }
                     if (beta < opt.roulette_weight) {
                         if (rng.uniform() < 0.5) beta *= 2.0; else break;
@@ -155,8 +173,11 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
                     s.d = rotate_direction(s.d, hg_sample_mu(o.g, rng.uniform()), 2.0 * std::numbers::pi * rng.uniform());
                 }
             }
-            acc[(static_cast<size_t>(pix) * nb + b) * 2] += L;
-            acc[(static_cast<size_t>(pix) * nb + b) * 2 + 1] += L * L;
+            for (int q = 0; q < nbg; ++q) {
+                const size_t b = static_cast<size_t>(bands[static_cast<size_t>(q)]);
+                acc[(static_cast<size_t>(pix) * nb + b) * 2] += L[q];
+                acc[(static_cast<size_t>(pix) * nb + b) * 2 + 1] += L[q] * L[q];
+            }
         }
         if ((si - s0) % 4096 == 0) progress.update(static_cast<double>(si - s0));
     }

@@ -8,12 +8,17 @@
 // then the path continues in an HG-sampled direction (Russian roulette below the roulette
 // weight). Volume sources ([[sources]]) add their emission along every flight by track length,
 //   L += beta q len,   q = power / 4π in covered cells with density
-// (a flight reaches x with probability T(x), so this estimates the integral of q T). A view ray that leaves unscattered sees the background colour; scattered paths that
+// (a flight reaches x with probability T(x), so this estimates the integral of q T).
+// Bands with equal optics (src/scene/optics_groups.h) share each path: one walk gives every
+// band of the group its radiance (their lights, backgrounds and sources differ only as
+// factors), so a grey 3-band scene costs one walk per sample, not three, and its noise is the
+// same in the three channels (not coloured). A view ray that leaves unscattered sees the background colour; scattered paths that
 // leave see nothing (the background is not a light source, as in the forward tracer).
 // alpha = 1 - T along the view ray (first band).
 //
 // Collective over ctx.decomp.comm(): the pixel-sample index range [0, W H spp) is split into
-// contiguous blocks over the ranks; sample s draws from the Philox stream keyed by (seed, s),
+// contiguous blocks over the ranks; sample s of a band group draws from the Philox stream keyed
+// by (seed, the group's first band, s),
 // so the image is the same for any rank count up to round-off. Per-pixel standard error of
 // the mean over the samples goes to Image::stderr_rgb. Image on rank 0, empty elsewhere.
 // Background kind "ground" is not modelled here: it is rendered black (logged).

@@ -148,6 +148,40 @@ TEST(MonteCarloModel, VolumeSourceAddsToTheSunlitImage) {
     EXPECT_GT(glow_sum, 0.0);
 }
 
+// Bands with equal optics share their camera paths (one walk per group): the 3-band image
+// equals, channel by channel, 1-band images with each band's sun, background and emission (the
+// same seed gives the same paths), and the channels' noise is correlated, not coloured.
+TEST(MonteCarloModel, BandsWithEqualOpticsShareTheirPaths) {
+    const std::vector<double> E0 = {1.0, 0.5, 0.25}, bg = {0.2, 0.4, 0.6}, power = {1.5, 0.7, 0.3};
+    auto setup = [](World& w, std::vector<double> e, std::vector<double> b, std::vector<double> p) {
+        const BandOptics o = w.m.bands[0];
+        w.m.bands.assign(e.size(), o);
+        w.scene.bands = w.m.bands;
+        w.light.lights[0].E0 = std::move(e);
+        w.scene.background.color = std::move(b);
+        w.scene.sources = {SourceSpec{{2, 1, 3}, {6, 7, 8}, std::move(p)}};
+    };
+    MonteCarloOptions o;
+    o.image = true;
+    o.samples_per_pixel = 32;
+    World three(MPI_COMM_WORLD, 0.9);
+    setup(three, E0, bg, power);
+    const Image all = make_montecarlo_model(o)->render(three.ctx());
+    for (int b = 0; b < 3; ++b) {
+        World one(MPI_COMM_WORLD, 0.9);
+        setup(one, {E0[b]}, {bg[b]}, {power[b]});
+        const Image single = make_montecarlo_model(o)->render(one.ctx());
+        if (test::world_rank() != 0) continue;
+        for (int y = 0; y < 4; ++y)
+            for (int x = 0; x < 6; ++x) {
+                const double a = all.pixel(x, y)[b], s1 = single.pixel(x, y)[0];
+                EXPECT_NEAR(a, s1, 1e-6 * s1) << "band " << b << " pixel " << x << "," << y;
+                EXPECT_NEAR(all.stderr_rgb[static_cast<size_t>(y * 6 + x) * 3 + b],
+                            single.stderr_rgb[static_cast<size_t>(y * 6 + x) * 3], 1e-6 * s1);
+            }
+    }
+}
+
 TEST(MonteCarloModel, ImageIndependentOfRankCount) {
     World world(MPI_COMM_WORLD, 0.95), self(MPI_COMM_SELF, 0.95);
     MonteCarloOptions o;
