@@ -28,24 +28,20 @@ bool proportional(const std::vector<DirectionalLight>& lights, int band, int ref
 std::vector<BandGroup> group_bands(const std::vector<BandOptics>& bands,
                                    const std::vector<DirectionalLight>& lights) {
     std::vector<BandGroup> groups;
-    for (int b = 0; b < static_cast<int>(bands.size()); ++b) {
-        const BandOptics& o = bands[static_cast<size_t>(b)];
-        BandGroup* g = nullptr;
-        for (auto& cand : groups)
-            if (same_optics(cand.optics, o)) g = &cand;
-        if (!g) {
-            groups.push_back(BandGroup{o, {}, {}});
-            g = &groups.back();
+    for (const OpticsGroup& og : group_by_optics(bands)) {
+        BandGroup g{og.optics, {}, {}};
+        for (const int b : og.bands) {
+            BandUse use{b, -1, 1.0};
+            for (size_t r = 0; r < g.rhs_band.size() && use.rhs < 0; ++r)
+                if (proportional(lights, b, g.rhs_band[r], use.scale)) use.rhs = static_cast<int>(r);
+            if (use.rhs < 0) {
+                use.rhs = static_cast<int>(g.rhs_band.size());
+                use.scale = 1.0;
+                g.rhs_band.push_back(b);
+            }
+            g.bands.push_back(use);
         }
-        BandUse use{b, -1, 1.0};
-        for (size_t r = 0; r < g->rhs_band.size() && use.rhs < 0; ++r)
-            if (proportional(lights, b, g->rhs_band[r], use.scale)) use.rhs = static_cast<int>(r);
-        if (use.rhs < 0) {
-            use.rhs = static_cast<int>(g->rhs_band.size());
-            use.scale = 1.0;
-            g->rhs_band.push_back(b);
-        }
-        g->bands.push_back(use);
+        groups.push_back(std::move(g));
     }
     return groups;
 }
