@@ -21,17 +21,15 @@ double global_norm(const std::vector<double>& v, MPI_Comm comm) {
 }  // namespace
 
 DiffusionSynthetic::DiffusionSynthetic(const Decomposition& d, const BandProblem& p, double tolerance,
-                                       const std::array<bool, 6>& reflective)
+                                       const std::array<bool, 6>& reflective, bool lagged_sources)
     : d_(d), p_(p) {
     const Box& own = d.local();
     dp_.h = p.h;
     dp_.n = d.global().hi;
     dp_.periodic = {d.periodic(0), d.periodic(1), d.periodic(2)};
-    // Zero current on the LOW mirror faces only: the sweep reflects those within the same sweep
-    // (octant order, transport_sweep.h), but a HIGH mirror face returns the previous sweep's
-    // light, which the diffusion correction does not model; zero current there made DSA
-    // diverge (closed box, albedo >= 0.8), so high mirror faces keep the Marshak condition.
-    for (size_t f = 0; f < 6; f += 2) dp_.reflective[f] = reflective[f];
+    // Zero current on the mirror faces; on the high ones only with their lagged current changes
+    // as sources (dsa.h).
+    for (size_t f = 0; f < 6; ++f) dp_.reflective[f] = reflective[f] && (f % 2 == 0 || lagged_sources);
     dp_.kappa_tr = Field<double>(own, 1, 1, 0.0);
     dp_.sigma_a = Field<double>(own, 0, 1, 0.0);
     // D = 1/(3 kappa_tr) + h/4 (dsa.h): kappa_tr of the diffusion assembly is 1/(3 D).
@@ -87,27 +85,29 @@ DiffusionSynthetic::DiffusionSynthetic(const Decomposition& d, const BandProblem
 
 DiffusionSynthetic::~DiffusionSynthetic() = default;
 
-int DiffusionSynthetic::correct(const Field<double>& fluence_old, Field<double>& fluence, Report& report) {
+int DiffusionSynthetic::correct(const Field<double>& fluence_old, Field<double>& fluence, Report& report,
+                                const Field<double>* mirror_source) {
     (void)report;
     const Box& own = d_.local();
     if (change_.owned().empty()) change_ = Field<double>(own, 0, 1, 0.0);
     for_each_cell(own, [&](int i, int j, int k) { change_(i, j, k) = fluence(i, j, k) - fluence_old(i, j, k); });
-    const int iterations = solve(change_);
+    const int iterations = solve(change_, mirror_source);
     for_each_cell(own, [&](int i, int j, int k) { fluence(i, j, k) += delta_(i, j, k); });
     return iterations;
 }
 
-int DiffusionSynthetic::solve(const Field<double>& r) {
+int DiffusionSynthetic::solve(const Field<double>& r, const Field<double>* mirror_source) {
     delta_.fill(0.0);
     if (!solver_) return 0;
-    // b = h² sigma_s r in full cells, 0 in empty ones: Assembler::rhs with Q0 = sigma_s r
-    // and G = 0 (no face terms).
+    // b = h² (sigma_s r + dJ/h on high mirror faces) in full cells, 0 in empty ones:
+    // Assembler::rhs with Q0 = sigma_s r and G = 0 (no face terms).
     const size_t ncell = static_cast<size_t>(box_.cells());
     const double h2 = p_.h * p_.h;
     std::vector<double> b(ncell);
     size_t n = 0;
     for_each_cell(box_, [&](int i, int j, int k) {
-        b[n] = full_[n] ? h2 * p_.sigma_s(i, j, k) * r(i, j, k) : 0.0;
+        const double extra = mirror_source ? (*mirror_source)(i, j, k) : 0.0;
+        b[n] = full_[n] ? h2 * (p_.sigma_s(i, j, k) * r(i, j, k) + extra) : 0.0;
         ++n;
     });
     const double b_norm = global_norm(b, d_.comm());

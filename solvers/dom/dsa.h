@@ -4,10 +4,13 @@
 // isotropic part is estimated by the diffusion problem
 //   -∇·(D ∇δ) + sigma_a δ = sigma_s (phi^{l+1/2} - phi^l),   phi^{l+1} = phi^{l+1/2} + δ,
 // with the Marshak condition (homogeneous: the error has no incoming light) at empty cells and
-// the domain boundary, and zero net current on the specularly reflective LOW domain faces (a
-// mirror returns all that leaves: n·F = 0); high mirror faces, reflected one sweep late, keep
-// Marshak (dsa.cpp). Closed reflective box at albedo 0.99: 524 iterations instead of 697.
-// sigma_s = kappa* a*, and
+// the domain boundary, and zero net current on specularly reflective domain faces (a mirror
+// returns all that leaves: n·F = 0). A low mirror face returns the same sweep's light; a high
+// one the previous sweep's (transport_sweep.h), so there the error's net inward current is the
+// change dJ of the sweep's outgoing current (e_in = R(e_out + psi_out^new - psi_out^old)):
+// correct() takes it as a boundary source, b += h dJ per boundary cell. Without it (GMRES's
+// preconditioner) high mirror faces keep Marshak; zero current there without the source made
+// DSA diverge. sigma_s = kappa* a*, and
 //   D = 1/(3 kappa_tr) + h/4,   kappa_tr = kappa* (1 - a* chi*_1) = kappa (1 - a g).
 // The h/4 is the step scheme's own numerical diffusion: upwinding adds |mu_a| h/2 ∂²_a psi per
 // direction, and for nearly isotropic psi (1/4π) Σ_n w_n |mu_a,n| h/2 = h/4 per axis. In thick
@@ -42,20 +45,24 @@ namespace nimbus::dom {
 class DiffusionSynthetic {
 public:
     // Collective. p must outlive this object. reflective: the sweep's mirror faces
-    // (SweepBoundary::reflective, x-, x+, y-, y+, z-, z+).
+    // (SweepBoundary::reflective, x-, x+, y-, y+, z-, z+); lagged_sources: correct() will get the
+    // high mirror faces' current changes (else those faces keep Marshak).
     DiffusionSynthetic(const Decomposition& d, const BandProblem& p, double tolerance,
-                       const std::array<bool, 6>& reflective = {});
+                       const std::array<bool, 6>& reflective = {}, bool lagged_sources = false);
     ~DiffusionSynthetic();
     DiffusionSynthetic(const DiffusionSynthetic&) = delete;
     DiffusionSynthetic& operator=(const DiffusionSynthetic&) = delete;
     // Collective. Adds δ to fluence (owned cells). Returns the linear solver's iterations (0
     // when the right-hand side vanishes everywhere). Throws Error (on every rank) when the
     // true relative residual stays above the tolerance.
-    int correct(const Field<double>& fluence_old, Field<double>& fluence, Report& report);
+    // mirror_source: dJ / h per boundary cell of the high mirror faces (TransportSweeper::
+    // for_each_lagged_mirror_change), owned cells, or null.
+    int correct(const Field<double>& fluence_old, Field<double>& fluence, Report& report,
+                const Field<double>* mirror_source = nullptr);
     // Collective. δ = A^{-1} sigma_s r for a fluence change r (W/m², owned cells, 1 component),
     // into last_correction(). Same return value and errors as correct(). A linear map of r up to
     // the solver tolerance (PCG from a zero initial guess).
-    int solve(const Field<double>& r);
+    int solve(const Field<double>& r, const Field<double>* mirror_source = nullptr);
     // The correction of the last call (owned cells, W/m²).
     const Field<double>& last_correction() const { return delta_; }
 

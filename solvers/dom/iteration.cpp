@@ -59,11 +59,12 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
     std::unique_ptr<DiffusionSynthetic> dsa;
     if (method == "dsa") {
         ScopedTimer t(report, "dsa_setup");
-        dsa = std::make_unique<DiffusionSynthetic>(d, p, 1e-4, sweeper.boundary().reflective);
+        dsa = std::make_unique<DiffusionSynthetic>(d, p, 1e-4, sweeper.boundary().reflective, true);
     }
     const double y00 = 1.0 / std::sqrt(4.0 * std::acos(-1.0));
     Field<double> phi(own, 0, ang.nmom, 0.0), s(own, 0, ang.nmom, 0.0);
     Field<double> fluence_old(own, 0, 1, 0.0);
+    Field<double> mirror_source(own, 0, 1, 0.0);  // DSA's boundary source on high mirror faces
     SweepSource src;
     src.kappa = &p.kappa;
     src.moments = &s;
@@ -80,7 +81,10 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
                 MPI_Barrier(d.comm());
             }
             ScopedTimer t(report, "dsa_solve");
-            res.dsa_linear_iterations += dsa->correct(fluence_old, out.fluence, report);
+            mirror_source.fill(0.0);
+            sweeper.for_each_lagged_mirror_change(
+                [&](int i, int j, int k, double dJ) { mirror_source(i, j, k) += dJ / p.h; });
+            res.dsa_linear_iterations += dsa->correct(fluence_old, out.fluence, report, &mirror_source);
             const auto& delta = dsa->last_correction();
             for_each_cell(own, [&](int i, int j, int k) { out.phi(i, j, k, 0) += y00 * delta(i, j, k); });
         }

@@ -175,6 +175,8 @@ std::ptrdiff_t TransportSweeper::plane_index(int axis, int i, int j, int k) cons
 void TransportSweeper::reset_reflections() {
     for (auto& face : reflected_)
         for (auto& plane : face) plane.clear();
+    for (auto& c : mirror_current_) c.clear();
+    for (auto& c : mirror_current_prev_) c.clear();
 }
 
 void TransportSweeper::set_upwind_ghosts(Field<double>& psi, int o) {
@@ -230,9 +232,18 @@ void TransportSweeper::store_reflected(const Field<double>& psi, int o) {
         std::vector<double>& buf = reflected_[static_cast<size_t>(f)][static_cast<size_t>(o)];
         buf.resize(static_cast<size_t>(p.cells() * nd));
         const int off = face_offset(a, nd);
+        std::vector<double>& current = mirror_current_[static_cast<size_t>(f)];  // high faces only
+        if (s > 0) current.resize(static_cast<size_t>(p.cells()), 0.0);
+        const double* mu = oc.abs_mu[static_cast<size_t>(a)].data();
         for_each_cell(p, [&](int i, int j, int k) {
             const double* v = &psi(i, j, k) + off;
-            std::copy(v, v + nd, buf.data() + plane_index(a, i, j, k) * nd);
+            const std::ptrdiff_t c = plane_index(a, i, j, k);
+            std::copy(v, v + nd, buf.data() + c * nd);
+            if (s > 0) {
+                double J = 0.0;
+                for (int n = 0; n < nd; ++n) J += oc.weight[static_cast<size_t>(n)] * mu[n] * v[n];
+                current[static_cast<size_t>(c)] += J;
+            }
         });
     }
 }
@@ -278,6 +289,10 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
     out.leakage.fill(0.0);
     out.min_psi = std::numeric_limits<double>::infinity();
     incoming_.fill(0.0);
+    for (size_t f = 1; f < 6; f += 2) {  // this sweep's outgoing currents start from zero
+        std::swap(mirror_current_[f], mirror_current_prev_[f]);
+        std::fill(mirror_current_[f].begin(), mirror_current_[f].end(), 0.0);
+    }
     sky_on_ = bc_.sky && src.amp != nullptr;
     const bool fixup = fixup_ && src.amp != nullptr;  // not on GMRES's operator sweeps (must stay linear)
     const double* kap = src.kappa->data();

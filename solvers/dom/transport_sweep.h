@@ -116,6 +116,26 @@ public:
     void set_sky_radiance(double L) { sky_radiance_ = L; }
     // Forgets the lagged reflected planes (zero), e.g. before a new band.
     void reset_reflections();
+    // A HIGH mirror face returns the previous sweep's outgoing light (a low one the same
+    // sweep's): calls f(i, j, k, dJ) for each of this rank's boundary cells on a high
+    // reflective face, dJ = outgoing current of the last sweep minus that of the one before
+    // (W/m², Σ w |Ω·n| psi over the leaving directions): the change of the incoming current the
+    // next sweep will see there, which DSA adds as a boundary source (dsa.h).
+    template <class F>
+    void for_each_lagged_mirror_change(F&& f) const {
+        for (int a = 0; a < 3; ++a) {
+            const size_t face = static_cast<size_t>(2 * a + 1);
+            if (!bc_.reflective[face] || !d_.at_high_boundary(a)) continue;
+            const std::vector<double>& now = mirror_current_[face];
+            const std::vector<double>& before = mirror_current_prev_[face];
+            Box p = d_.local();
+            p.lo[a] = p.hi[a] - 1;
+            for_each_cell(p, [&](int i, int j, int k) {
+                const auto c = static_cast<size_t>(plane_index(a, i, j, k));
+                f(i, j, k, (c < now.size() ? now[c] : 0.0) - (c < before.size() ? before[c] : 0.0));
+            });
+        }
+    }
 
 private:
     void set_upwind_ghosts(Field<double>& psi, int o);
@@ -149,6 +169,9 @@ private:
     // this rank) for the octant o leaving through it, plane cells x nd.
     std::array<std::array<std::vector<double>, 8>, 6> reflected_;
     std::array<double, 6> incoming_{};  // power entering through each face in this sweep (W)
+    // Outgoing current per boundary cell of each high reflective face (plane_index order), this
+    // sweep and the one before (for_each_lagged_mirror_change).
+    std::array<std::vector<double>, 6> mirror_current_, mirror_current_prev_;
 };
 
 }  // namespace nimbus::dom
