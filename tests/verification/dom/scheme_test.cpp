@@ -290,6 +290,9 @@ TEST(DomScheme, DiamondOneAndTwoRanksAgree) {
 // on this cube: 11, 15, 34 iterations at kappa h = 0.5, 1, 1.5; a change of ~1.3 per iteration
 // at 2 and 6.25), so the model refuses diamond + dsa on such cells with an Error naming the
 // fix: DSA-preconditioned GMRES, which converges (7 .. 26 iterations over the same range).
+// A larger numerical-diffusion term does not rescue plain DSA (12³ cube, kappa h 6.25,
+// D = 1/(3 kappa_tr) + c h): c = 1/2 still diverges, c = 1 converges at ~0.88 per iteration
+// (hundreds of iterations) and slows the step scheme 7 -> 26 and diamond at kappa h = 1 15 -> 30.
 using test::CubeRun;
 CubeRun thick_cube(double tau, const std::string& scheme, const std::string& method, int max_iterations) {
     const int n = 12;
