@@ -102,6 +102,10 @@ void info(const RunOptions& opts) {
                        : tau < 3   ? "intermediate: multiple scattering matters; 'montecarlo' is the reference"
                                    : "optically thick: multiple scattering dominates; 'diffusion' suits the core, "
                                      "'montecarlo' is the reference";
+    if (!s.sources.empty())
+        advice = fmt::format("lit by {} volume source(s) ([[sources]]): only 'dom' and 'montecarlo' model them "
+                             "('montecarlo' is the reference); optical depth: {}",
+                             s.sources.size(), tau < 0.3 ? "thin" : tau < 3 ? "intermediate" : "thick");
     log::info("models in this build: {}; this scene is {}", fmt::format("{}", fmt::join(available_models(), ", ")), advice);
     log::info("model asked for: '{}'", s.model.name);
 }

@@ -12,6 +12,9 @@ if [ -n "$scenes" ]; then
   for want in "48 x 48 x 48" "vertical optical depth max 20" "memory estimate per rank" "optically thick"; do
     if echo "$out" | grep -q "$want"; then pass=$((pass + 1)); else echo "FAIL: nimbus info lacks '$want'"; echo "$out" | tail -3; fail=$((fail + 1)); fi
   done
+  # A scene lit by a volume source: the advice names the models that model sources.
+  out=$("$nimbus" info "$scenes/duct.toml" 2>&1)
+  if echo "$out" | grep -q "only 'dom' and 'montecarlo' model them"; then pass=$((pass + 1)); else echo "FAIL: nimbus info (duct) does not name the models for [[sources]]"; echo "$out" | tail -3; fail=$((fail + 1)); fi
 fi
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]
