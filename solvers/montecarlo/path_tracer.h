@@ -22,6 +22,9 @@
 // so the image is the same for any rank count up to round-off. Per-pixel standard error of
 // the mean over the samples goes to Image::stderr_rgb. Image on rank 0, empty elsewhere.
 // Background kind "ground" is not modelled here: it is rendered black (logged).
+// Memory per rank: the replicated density (8 B per cell), a 16-byte voxel grid per band group
+// and, with volume sources, 4 B per cell and band: less than the forward tracer's replicated
+// arrays, which the model checks against max_replicated_memory_gb before (solve() runs first).
 #pragma once
 
 #include "src/model/model.h"
