@@ -61,9 +61,9 @@ bool enter_domain(const Grid& grid, const GridView& g, const Vec3& x, const Vec3
     return true;
 }
 
-}  // namespace
+constexpr int kMaxBands = 64;  // bands per optics group (a radiance per band on the stack)
 
-constexpr int kMaxBands = 64;
+}  // namespace
 
 Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
     const Decomposition& d = ctx.decomp;
