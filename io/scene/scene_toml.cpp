@@ -277,6 +277,7 @@ void read_diffusion(const TableReader& df, DiffusionOptions& o) {
     df.read("flux_limiter", o.flux_limiter);
     df.read("limiter_iterations", o.limiter_iterations);
     df.read("limiter_tolerance", o.limiter_tolerance);
+    df.read("petsc_options", o.petsc_options);
 }
 
 void read_dom(const TableReader& t, DomOptions& o) {
@@ -327,7 +328,8 @@ void read_model(const TableReader& t, ModelSpec& m) {
                     m.montecarlo);
     read_diffusion(t.table("diffusion", {"solver", "tolerance", "max_iterations", "margin",
                                          "max_transport_length", "clamp_negative", "delta_scaling",
-                                         "flux_limiter", "limiter_iterations", "limiter_tolerance"}),
+                                         "flux_limiter", "limiter_iterations", "limiter_tolerance",
+                                         "petsc_options"}),
                    m.diffusion);
     read_dom(t.table("dom", {"quadrature", "order", "polar", "azimuthal", "legendre_order", "delta_m",
                              "scheme", "iteration", "tolerance", "max_iterations", "tile_rows",

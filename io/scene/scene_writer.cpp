@@ -197,6 +197,7 @@ std::string scene_to_toml(const Scene& s) {
     o << "flux_limiter = " << str(df.flux_limiter) << "\n";
     o << "limiter_iterations = " << df.limiter_iterations << "\n";
     o << "limiter_tolerance = " << num(df.limiter_tolerance) << "\n";
+    o << "petsc_options = " << str(df.petsc_options) << "\n";
     write_dom(o, s.model.dom);
     write_lpm(o, s.model.lpm);
     write_psf(o, s.model.psf);

@@ -4,8 +4,8 @@
 //
 // For each hypre solver (pfmg-pcg, smg-pcg, pfmg, smg) the whole diffusion phase of the model
 // (sources, region, assembly, setup, solve, true residual, flux, halo) is timed, next to a
-// bare hypre PFMG-PCG solve of the same matrix and right-hand side (setup + solve only, no
-// residual check): the floor the model is measured against. Domain 1.28 km, sigma_t 0.05/m,
+// bare hypre PFMG-PCG solve of the same matrix and right-hand side with the model's PFMG
+// settings (setup + solve only, no residual check): the floor the model is measured against. Domain 1.28 km, sigma_t 0.05/m,
 // a = 0.9, g = 0.85, sun along (0.3, 0.2, -1); tolerance 1e-8 (true relative residual).
 // A warm-up solve runs first (the first hypre setup pays for paging memory in).
 // Prints a markdown table on rank 0; times are the max over ranks.
@@ -64,31 +64,22 @@ Bare bare_pfmg_pcg(const Decomposition& d, const diffusion::DiffusionProblem& p)
     b.set_box_values(box, rhs);
     b.assemble();
     x.assemble();
-    HYPRE_StructSolver pcg, pfmg;
-    HYPRE_StructPCGCreate(d.comm(), &pcg);
-    HYPRE_StructPCGSetTol(pcg, 1e-8);
-    HYPRE_StructPCGSetMaxIter(pcg, 200);
-    HYPRE_StructPCGSetTwoNorm(pcg, 1);
-    HYPRE_StructPFMGCreate(d.comm(), &pfmg);
-    HYPRE_StructPFMGSetMaxIter(pfmg, 1);
-    HYPRE_StructPFMGSetTol(pfmg, 0.0);
-    HYPRE_StructPFMGSetZeroGuess(pfmg);
-    HYPRE_StructPFMGSetRelaxType(pfmg, 1);  // hypre's defaults otherwise
-    HYPRE_StructPCGSetPrecond(pcg, HYPRE_StructPFMGSolve, HYPRE_StructPFMGSetup, pfmg);
+    // The model's own solver object (hypre_struct.h): PCG with the same PFMG V-cycle
+    // (red/black GS, 2/2 sweeps on every level), so that the ratio measures what the model
+    // adds (sources, region, assembly, true-residual check, flux), not a different smoother.
+    diffusion::hypre::Solver solver(d.comm(), "pfmg-pcg", false);
+    solver.set_tolerance(1e-8);
+    solver.set_max_iterations(200);
     Bare out;
     MPI_Barrier(d.comm());
     double t0 = MPI_Wtime();
-    HYPRE_StructPCGSetup(pcg, A.get(), b.get(), x.get());
+    solver.setup(A, b, x);
     out.setup = max_over_ranks(MPI_Wtime() - t0, d.comm());
     MPI_Barrier(d.comm());
     t0 = MPI_Wtime();
-    HYPRE_StructPCGSolve(pcg, A.get(), b.get(), x.get());
+    solver.solve(A, b, x);
     out.solve = max_over_ranks(MPI_Wtime() - t0, d.comm());
-    HYPRE_Int its = 0;
-    HYPRE_StructPCGGetNumIterations(pcg, &its);
-    out.iterations = static_cast<int>(its);
-    HYPRE_StructPCGDestroy(pcg);
-    HYPRE_StructPFMGDestroy(pfmg);
+    out.iterations = solver.iterations();
     return out;
 }
 
@@ -144,9 +135,9 @@ int main(int argc, char** argv) {
         const double floor = bare.setup + bare.solve;
         if (rank == 0) {
             std::printf("\n### diffusion, %s %d³, %d rank(s), tolerance 1e-8\n\n", medium.c_str(), N, size);
-            std::printf("| N | ranks | solver | region cells | iterations | true residual | assemble s | setup s | solve s | diffusion phase s | / bare |\n");
-            std::printf("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
-            std::printf("| %d | %d | bare hypre PFMG-PCG | | %d | | | %.3f | %.3f | %.3f | 1.00 |\n", N,
+            std::printf("| N | ranks | solver | region cells | iterations | true residual | assemble s | setup s | solve s | (assemble + setup + solve) / bare | diffusion phase s | / bare |\n");
+            std::printf("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
+            std::printf("| %d | %d | bare hypre PFMG-PCG | | %d | | | %.3f | %.3f | 1.00 | %.3f | 1.00 |\n", N,
                         size, bare.iterations, bare.setup, bare.solve, floor);
         }
         for (const auto& solver : solvers) {
@@ -164,15 +155,15 @@ int main(int argc, char** argv) {
             const double so = max_over_ranks(report.time("diffusion/solve"), d.comm());
             if (rank != 0) continue;
             if (!failure.empty()) {
-                std::printf("| %d | %d | %s | | failed: %.80s | | | | | | |\n", N, size, solver.c_str(),
+                std::printf("| %d | %d | %s | | failed: %.80s | | | | | | | |\n", N, size, solver.c_str(),
                             failure.c_str());
                 continue;
             }
             const auto& sys = v["systems"][0];
-            std::printf("| %d | %d | %s | %lld | %d | %.1e | %.3f | %.3f | %.3f | %.3f | %.2f |\n", N,
+            std::printf("| %d | %d | %s | %lld | %d | %.1e | %.3f | %.3f | %.3f | %.2f | %.3f | %.2f |\n", N,
                         size, solver.c_str(), static_cast<long long>(v["region"]["cells"].get<std::int64_t>()),
                         sys["iterations"].get<int>(), sys["true_residual"].get<double>(), as, su, so,
-                        total, total / floor);
+                        (as + su + so) / floor, total, total / floor);
         }
     } catch (const std::exception& e) {
         if (rank == 0) std::fprintf(stderr, "bench_diffusion: %s\n", e.what());

@@ -25,7 +25,8 @@ public:
                 {"delta_scaling", opt_.delta_scaling},
                 {"flux_limiter", opt_.flux_limiter},
                 {"limiter_iterations", opt_.limiter_iterations},
-                {"limiter_tolerance", opt_.limiter_tolerance}};
+                {"limiter_tolerance", opt_.limiter_tolerance},
+                {"petsc_options", opt_.petsc_options}};
     }
 
     void solve(const SolveContext& ctx, DiffuseSolution& out) override {

@@ -2,7 +2,11 @@
 // through an independent stack. DMDA over the whole domain with the decomposition's slab
 // ownership, AIJ matrix (or what -diffusion_dm_mat_type selects), KSP CG with PCHYPRE
 // BoomerAMG, stopping on the unpreconditioned 2-norm ||r|| <= tol ||b||. PETSc options with
-// the prefix "diffusion_" override these choices (e.g. -diffusion_pc_type mg).
+// the prefix "diffusion_" override these choices, from model.diffusion.petsc_options (a private
+// options database) or else PETSc's global options (PETSC_OPTIONS). Geometric multigrid:
+// "-diffusion_pc_type mg -diffusion_pc_mg_levels L -diffusion_pc_mg_galerkin both" coarsens
+// the DMDA attached to the KSP, which PETSc allows only when n - 1 is divisible by 2^(L-1)
+// along every axis (e.g. 49 cells, L = 3); otherwise KSPSetUp fails with PETSc's message.
 #include <petscdmda.h>
 #include <petscksp.h>
 
@@ -23,6 +27,10 @@ void check(PetscErrorCode ierr, const char* what) { petsc::check(ierr, "diffusio
 void ensure_petsc(MPI_Comm comm) { petsc::ensure_initialized(comm); }
 
 // Owning handles, destroyed in reverse order of declaration.
+struct OptionsHandle {
+    PetscOptions o = nullptr;
+    ~OptionsHandle() { if (o) PetscOptionsDestroy(&o); }
+};
 struct DMHandle {
     DM dm = nullptr;
     ~DMHandle() { if (dm) DMDestroy(&dm); }
@@ -61,9 +69,17 @@ LinearSolveOutput solve_with_petsc(const Decomposition& d, const Assembler& asse
     DMBoundaryType bt[3];
     for (int a = 0; a < 3; ++a)
         bt[a] = (p.periodic[a] && p.n[a] > 1) ? DM_BOUNDARY_PERIODIC : DM_BOUNDARY_NONE;
+    // model.diffusion.petsc_options: a private options database for this solve's DM and KSP
+    // (declared first, so destroyed after them).
+    OptionsHandle options;
+    if (!opt.petsc_options.empty()) {
+        check(PetscOptionsCreate(&options.o), "PetscOptionsCreate");
+        check(PetscOptionsInsertString(options.o, opt.petsc_options.c_str()), "PetscOptionsInsertString (petsc_options)");
+    }
     DMHandle da;
     check(DMDACreate3d(comm, bt[0], bt[1], bt[2], DMDA_STENCIL_STAR, p.n[0], p.n[1], p.n[2], 1, 1,
                        d.size(), 1, 1, nullptr, nullptr, lz.data(), &da.dm), "DMDACreate3d");
+    if (options.o) check(PetscObjectSetOptions(reinterpret_cast<PetscObject>(da.dm), options.o), "PetscObjectSetOptions");
     check(DMSetOptionsPrefix(da.dm, "diffusion_"), "DMSetOptionsPrefix");
     check(DMSetFromOptions(da.dm), "DMSetFromOptions");
     check(DMSetUp(da.dm), "DMSetUp");
@@ -104,8 +120,13 @@ LinearSolveOutput solve_with_petsc(const Decomposition& d, const Assembler& asse
     timer.emplace(report, "setup");
     KSPHandle ksp;
     check(KSPCreate(comm, &ksp.ksp), "KSPCreate");
+    if (options.o) check(PetscObjectSetOptions(reinterpret_cast<PetscObject>(ksp.ksp), options.o), "PetscObjectSetOptions");
     check(KSPSetOptionsPrefix(ksp.ksp, "diffusion_"), "KSPSetOptionsPrefix");
     check(KSPSetOperators(ksp.ksp, A.m, A.m), "KSPSetOperators");
+    // The DMDA rides along (inactive: the operator and right-hand sides are ours) so that
+    // geometric preconditioners can coarsen it, e.g. -diffusion_pc_type mg with levels.
+    check(KSPSetDM(ksp.ksp, da.dm), "KSPSetDM");
+    check(KSPSetDMActive(ksp.ksp, PETSC_FALSE), "KSPSetDMActive");
     check(KSPSetType(ksp.ksp, KSPCG), "KSPSetType");
     PC pc;
     check(KSPGetPC(ksp.ksp, &pc), "KSPGetPC");

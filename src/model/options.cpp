@@ -33,6 +33,8 @@ void DiffusionOptions::validate() const {
         throw Error(fmt::format("model.diffusion.flux_limiter = '{}': allowed are none, levermore-pomraning", flux_limiter));
     if (limiter_iterations < 1) throw Error("model.diffusion.limiter_iterations must be >= 1");
     if (limiter_tolerance <= 0 || limiter_tolerance >= 1) throw Error("model.diffusion.limiter_tolerance must be in (0, 1)");
+    if (!petsc_options.empty() && solver != "petsc")
+        throw Error("model.diffusion.petsc_options is read only with solver = \"petsc\"");
 }
 
 void DomOptions::validate() const {

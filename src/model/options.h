@@ -36,6 +36,10 @@ struct DiffusionOptions {
     std::string flux_limiter = "none";  // none | levermore-pomraning (flux-limited diffusion)
     int limiter_iterations = 30;      // Picard iterations of the flux limiter at most
     double limiter_tolerance = 1e-2;  // stop when max |ΔU| / max U falls below this
+    // solver = petsc: PETSc options for its KSP/PC/DM (prefix "diffusion_"), e.g.
+    // "-diffusion_pc_type mg -diffusion_pc_mg_levels 3 -diffusion_pc_mg_galerkin both".
+    // Empty: CG + BoomerAMG, and PETSc's global options (PETSC_OPTIONS) apply.
+    std::string petsc_options;
     void validate() const;
 };
 
