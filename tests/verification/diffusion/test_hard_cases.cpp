@@ -13,7 +13,8 @@ namespace nimbus {
 namespace {
 
 constexpr int kN = 24;
-constexpr int kMaxIterations = 40;
+// Measured: at most 7 PFMG-PCG iterations (1 and 2 ranks); twice that is the bound.
+constexpr int kMaxIterations = 14;
 
 struct Case {
     const char* name;
@@ -21,10 +22,6 @@ struct Case {
     double h;
     std::function<double(int, int, int)> rho;
     Vec3 sun;
-    // P1 itself is negative in parts of the cloud when the forward-peaked first-scatter flux
-    // G dominates the isotropic source over the cloud (optically thin cells, g -> 1): only
-    // the clamped output is checked there.
-    bool p1_negative_inside = false;
 };
 
 double sphere(int i, int j, int k) {
@@ -64,12 +61,13 @@ void run_case(const Case& c) {
     EXPECT_LE(its, kMaxIterations) << c.name;
     EXPECT_LE(res, opt.tolerance) << c.name;
     EXPECT_GE(fmin, 0.0) << c.name;
-    // Otherwise P1 goes negative only in the boundary layer lit by the forward-peaked source
-    // (cells with a Marshak face); inside, at most solver round-off.
+    // P1 goes negative only in the boundary layer lit by the forward-peaked source (cells with
+    // a Marshak face; g = 0.99: 9 cells, min 4πU = -5.8e-3; cloud touching the boundary: 3
+    // cells, -2.9e-2; the output clamps them to 0 and reports the counts); inside, at most
+    // solver round-off, in every case (with delta-Eddington sources also for kappa h = 1e-4
+    // and g = 0.99).
     const double min_inside = 4 * std::numbers::pi * sys["min_U_interior"].get<double>();
-    if (!c.p1_negative_inside) {
-        EXPECT_GE(min_inside, -opt.tolerance * fmax) << c.name;
-    }
+    EXPECT_GE(min_inside, -opt.tolerance * fmax) << c.name;
     EXPECT_GT(fmax, 0.0) << c.name;
 }
 
@@ -91,7 +89,7 @@ TEST(DiffusionHardCases, OpticallyThickCells) {
 }
 
 TEST(DiffusionHardCases, OpticallyThinCells) {
-    run_case({"kappa h = 1e-4", {"gray", 1e-4, 0.9, 0.85}, 1.0, sphere, kOblique, true});
+    run_case({"kappa h = 1e-4", {"gray", 1e-4, 0.9, 0.85}, 1.0, sphere, kOblique});
 }
 
 TEST(DiffusionHardCases, SingleFullCell) {
@@ -100,7 +98,7 @@ TEST(DiffusionHardCases, SingleFullCell) {
 }
 
 TEST(DiffusionHardCases, ForwardPeakedG099) {
-    run_case({"g = 0.99", {"gray", 4.0, 0.99, 0.99}, 0.25, sphere, kOblique, true});
+    run_case({"g = 0.99", {"gray", 4.0, 0.99, 0.99}, 0.25, sphere, kOblique});
 }
 
 TEST(DiffusionHardCases, CloudTouchingDomainBoundary) {

@@ -1,10 +1,17 @@
 // (d) Decomposition invariance: the model on the world communicator (slabs along z) and on
 // MPI_COMM_SELF (each rank solves the whole domain) agree to the solver tolerance.
-// (e) The PETSc path (KSP CG + BoomerAMG) and every hypre solver agree with PFMG-PCG.
+// (e) The PETSc path (KSP CG + BoomerAMG, or PCMG through model.diffusion.petsc_options) and
+// every hypre solver agree with PFMG-PCG.
+// Also: non-convergence is an error that shows the residual history (issue 4 item 2), and
+// the solve region is the bounding box of the full cells plus the margin (item 4).
 #include <gtest/gtest.h>
+
+#include <algorithm>
+#include <string>
 
 #include "diffusion_test_util.h"
 #include "solvers/diffusion/diffusion.h"
+#include "src/core/error.h"
 #include "src/scene/medium.h"
 #include "tests/support/mpi_test.h"
 
@@ -30,6 +37,12 @@ DiffuseSolution solve_on(MPI_Comm comm, const std::string& solver, double tol, R
     opt.max_iterations = 2000;  // stand-alone PFMG is slow on a cloud's tenuous edge
     auto model = make_diffusion_model(opt);
     return test::run_model(*model, *d, kH, kBand, cumulus, kSun, report);
+}
+
+// A sphere of radius 9 cells centred in an n³ grid (n odd, so that PETSc can coarsen it).
+double sphere_in(int n, int i, int j, int k) {
+    const double c = 0.5 * n, x = i + 0.5 - c, y = j + 0.5 - c, z = k + 0.5 - c;
+    return x * x + y * y + z * z <= 81.0 ? 1.0 : 0.0;
 }
 
 // With ||b - A x|| <= tol ||b||, two solutions differ by at most ~cond(A) tol; for this cloud
@@ -64,6 +77,104 @@ TEST(DiffusionParallel, AllSolversAndPetscAgree) {
                         diff / umax, its);
         EXPECT_LE(diff, 100 * tol * umax) << solver;
     }
+}
+
+// PCMG on the DMDA (3 levels, Galerkin coarse operators) through model.diffusion.petsc_options:
+// the same answer as PFMG-PCG, and not BoomerAMG's iteration count (the options took effect).
+TEST(DiffusionParallel, PetscGeometricMultigridAgrees) {
+    constexpr int n = 25;  // n - 1 divisible by 4: PETSc coarsens the DMDA twice
+    const double tol = 1e-10;
+    auto solve = [&](const std::string& solver, const std::string& petsc_options, Report& report) {
+        Decomposition d(MPI_COMM_WORLD, {n, n, n});
+        DiffusionOptions opt;
+        opt.solver = solver;
+        opt.tolerance = tol;
+        opt.petsc_options = petsc_options;
+        auto model = make_diffusion_model(opt);
+        auto sol = test::run_model(*model, d, kH, kBand, [n](int i, int j, int k) { return sphere_in(n, i, j, k); },
+                                   kSun, report);
+        return std::make_pair(std::move(sol), d.local());
+    };
+    Report r_ref, r_amg, r_mg;
+    const auto [ref, box] = solve("pfmg-pcg", "", r_ref);
+    const auto [amg, box_amg] = solve("petsc", "", r_amg);
+    const auto [mg, box_mg] = solve("petsc", "-diffusion_pc_type mg -diffusion_pc_mg_levels 3 -diffusion_pc_mg_galerkin both",
+                                    r_mg);
+    const int its_amg = r_amg.values()["diffusion"]["systems"][0]["iterations"].get<int>();
+    const int its_mg = r_mg.values()["diffusion"]["systems"][0]["iterations"].get<int>();
+    const auto [diff, umax] = test::max_diff(ref.fluence[0], mg.fluence[0], box, MPI_COMM_WORLD);
+    if (test::world_rank() == 0)
+        std::printf("PCMG vs pfmg-pcg: max |diff| / max = %.2e; CG iterations: PCMG %d, BoomerAMG %d\n",
+                    diff / umax, its_mg, its_amg);
+    EXPECT_GT(umax, 0.0);
+    EXPECT_LE(diff, 100 * tol * umax);
+    EXPECT_NE(its_mg, its_amg);
+}
+
+// A grid PETSc cannot coarsen three times is refused with an Error (it used to crash).
+TEST(DiffusionParallel, PetscMultigridOnAnUncoarsenableGridIsAnError) {
+    Decomposition d(MPI_COMM_WORLD, {kN, kN, kN});  // 24: 23 is odd
+    DiffusionOptions opt;
+    opt.solver = "petsc";
+    opt.petsc_options = "-diffusion_pc_type mg -diffusion_pc_mg_levels 3";
+    auto model = make_diffusion_model(opt);
+    Report report;
+    EXPECT_THROW(test::run_model(*model, d, kH, kBand, cumulus, kSun, report), Error);
+}
+
+// Too few iterations: an Error on every rank whose message gives the residual history.
+TEST(DiffusionParallel, NonConvergenceIsAnErrorWithTheResidualHistory) {
+    for (const std::string solver : {"pfmg-pcg", "smg", "petsc"}) {
+        Decomposition d(MPI_COMM_WORLD, {kN, kN, kN});
+        DiffusionOptions opt;
+        opt.solver = solver;
+        opt.tolerance = 1e-12;
+        opt.max_iterations = 2;
+        auto model = make_diffusion_model(opt);
+        Report report;
+        std::string what;
+        try {
+            test::run_model(*model, d, kH, kBand, cumulus, kSun, report);
+        } catch (const Error& e) {
+            what = e.what();
+        }
+        EXPECT_NE(what.find("did not reach the relative residual"), std::string::npos) << solver << ": " << what;
+        EXPECT_NE(what.find("history"), std::string::npos) << solver << ": " << what;
+        // The history lists each iteration's residual: "1: <value>" appears.
+        EXPECT_NE(what.find("1: "), std::string::npos) << solver << ": " << what;
+    }
+}
+
+// The solve region is the bounding box of the cells with density grown by the margin and
+// clipped to the domain, on any decomposition; the report gives it.
+TEST(DiffusionParallel, SolveRegionIsTheBoundingBoxPlusMargin) {
+    int lo[3] = {kN, kN, kN}, hi[3] = {0, 0, 0};
+    for (int k = 0; k < kN; ++k)
+        for (int j = 0; j < kN; ++j)
+            for (int i = 0; i < kN; ++i) {
+                if (!(cumulus(i, j, k) > 0.0)) continue;
+                const int c[3] = {i, j, k};
+                for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], c[a]), hi[a] = std::max(hi[a], c[a] + 1);
+            }
+    for (const int margin : {0, 2, 30}) {
+        Decomposition d(MPI_COMM_WORLD, {kN, kN, kN});
+        DiffusionOptions opt;
+        opt.margin = margin;
+        auto model = make_diffusion_model(opt);
+        Report report;
+        test::run_model(*model, d, kH, kBand, cumulus, kSun, report);
+        const auto& region = report.values()["diffusion"]["region"];
+        std::int64_t cells = 1;
+        for (int a = 0; a < 3; ++a) {
+            const int want_lo = std::max(0, lo[a] - margin), want_hi = std::min(kN, hi[a] + margin);
+            EXPECT_EQ(region["lo"][a].get<int>(), want_lo) << "margin " << margin << ", axis " << a;
+            EXPECT_EQ(region["hi"][a].get<int>(), want_hi) << "margin " << margin << ", axis " << a;
+            cells *= want_hi - want_lo;
+        }
+        EXPECT_EQ(region["cells"].get<std::int64_t>(), cells);
+    }
+    // The cumulus does not fill the grid: the region is a real restriction.
+    EXPECT_LT((hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]), kN * kN * kN);
 }
 
 }  // namespace
