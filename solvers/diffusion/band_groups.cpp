@@ -1,5 +1,6 @@
 #include "solvers/diffusion/band_groups.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "src/scene/optics_groups.h"
@@ -7,39 +8,80 @@
 namespace nimbus::diffusion {
 namespace {
 
-// E0 of `band` = scale * E0 of `ref` for every light, to round-off?
-bool proportional(const std::vector<DirectionalLight>& lights, int band, int ref, double& scale) {
+// a = scale * b componentwise (to round-off), b not all zero; sets scale (least squares).
+bool proportional(const std::vector<double>& a, const std::vector<double>& b, double& scale) {
     double num = 0.0, den = 0.0;
-    for (auto& l : lights) {
-        num += band_value(l.E0, band) * band_value(l.E0, ref);
-        den += band_value(l.E0, ref) * band_value(l.E0, ref);
-    }
+    for (size_t i = 0; i < a.size(); ++i) num += a[i] * b[i], den += b[i] * b[i];
     if (den == 0.0) return false;
     scale = num / den;
-    for (auto& l : lights) {
-        const double e = band_value(l.E0, band), r = band_value(l.E0, ref);
-        if (std::abs(e - scale * r) > 1e-12 * std::max(std::abs(e), std::abs(r))) return false;
-    }
+    for (size_t i = 0; i < a.size(); ++i)
+        if (std::abs(a[i] - scale * b[i]) > 1e-12 * std::max(std::abs(a[i]), std::abs(b[i]))) return false;
     return true;
+}
+
+// One rhs per band; a band proportional (over the lights) to an earlier rhs band shares it.
+BandGroup by_band(const OpticsGroup& og, const std::vector<DirectionalLight>& lights) {
+    BandGroup g{og.optics, {}, {}};
+    for (const int b : og.bands) {
+        std::vector<double> e;
+        for (auto& l : lights) e.push_back(band_value(l.E0, b));
+        BandUse use{b, {}};
+        for (size_t r = 0; r < g.rhs_weights.size() && use.terms.empty(); ++r) {
+            double scale = 1.0;
+            if (proportional(e, g.rhs_weights[r], scale)) use.terms.push_back({static_cast<int>(r), scale});
+        }
+        if (use.terms.empty()) {
+            use.terms.push_back({static_cast<int>(g.rhs_weights.size()), 1.0});
+            g.rhs_weights.push_back(e);
+        }
+        g.bands.push_back(use);
+    }
+    return g;
+}
+
+// One rhs per colour class of lights (E0 over the group's bands proportional); lights dark in
+// every band of the group drop out.
+BandGroup by_colour(const OpticsGroup& og, const std::vector<DirectionalLight>& lights) {
+    const size_t nl = lights.size();
+    std::vector<std::vector<double>> colour(nl);  // E0 of light l over the group's bands
+    for (size_t l = 0; l < nl; ++l)
+        for (const int b : og.bands) colour[l].push_back(band_value(lights[l].E0, b));
+    std::vector<int> first;  // first light of each class
+    std::vector<std::vector<double>> weights;
+    for (size_t l = 0; l < nl; ++l) {
+        if (std::all_of(colour[l].begin(), colour[l].end(), [](double v) { return v == 0.0; })) continue;
+        size_t c = 0;
+        double scale = 1.0;
+        while (c < first.size() && !proportional(colour[l], colour[static_cast<size_t>(first[c])], scale)) ++c;
+        if (c == first.size()) {
+            first.push_back(static_cast<int>(l));
+            weights.emplace_back(nl, 0.0);
+            scale = 1.0;
+        }
+        weights[c][l] = scale;  // light l = scale x the class's first light, in every band
+    }
+    BandGroup g{og.optics, weights, {}};
+    for (size_t k = 0; k < og.bands.size(); ++k) {
+        BandUse use{og.bands[k], {}};
+        for (size_t c = 0; c < first.size(); ++c) {
+            const double s = colour[static_cast<size_t>(first[c])][k];
+            if (s != 0.0) use.terms.push_back({static_cast<int>(c), s});
+        }
+        g.bands.push_back(use);
+    }
+    return g;
 }
 
 }  // namespace
 
 std::vector<BandGroup> group_bands(const std::vector<BandOptics>& bands,
-                                   const std::vector<DirectionalLight>& lights) {
+                                   const std::vector<DirectionalLight>& lights, bool superpose) {
     std::vector<BandGroup> groups;
     for (const OpticsGroup& og : group_by_optics(bands)) {
-        BandGroup g{og.optics, {}, {}};
-        for (const int b : og.bands) {
-            BandUse use{b, -1, 1.0};
-            for (size_t r = 0; r < g.rhs_band.size() && use.rhs < 0; ++r)
-                if (proportional(lights, b, g.rhs_band[r], use.scale)) use.rhs = static_cast<int>(r);
-            if (use.rhs < 0) {
-                use.rhs = static_cast<int>(g.rhs_band.size());
-                use.scale = 1.0;
-                g.rhs_band.push_back(b);
-            }
-            g.bands.push_back(use);
+        BandGroup g = by_band(og, lights);
+        if (superpose) {
+            BandGroup c = by_colour(og, lights);
+            if (c.rhs_weights.size() < g.rhs_weights.size()) g = std::move(c);
         }
         groups.push_back(std::move(g));
     }

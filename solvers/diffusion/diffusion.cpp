@@ -1,5 +1,6 @@
 #include "solvers/diffusion/diffusion.h"
 
+#include <algorithm>
 #include <numbers>
 
 #include "solvers/diffusion/band_groups.h"
@@ -38,7 +39,12 @@ public:
             out.fluence.emplace_back(d.local(), 1, 1, 0.0);
             out.flux.emplace_back(d.local(), 1, 3, 0.0);
         }
-        const auto groups = diffusion::group_bands(m.bands, ctx.light.lights);
+        // Superposition of the lights' colours needs a linear solve (not the flux limiter); the
+        // sum of right-hand sides is clamped, not each of them (clamping is not linear).
+        const bool linear = opt_.flux_limiter == "none";
+        const auto groups = diffusion::group_bands(m.bands, ctx.light.lights, linear);
+        DiffusionOptions solve_opt = opt_;
+        if (linear) solve_opt.clamp_negative = false;
         ctx.report.values()["diffusion"]["matrices"] = groups.size();
         int solves = 0;
         for (const auto& group : groups) {
@@ -47,21 +53,24 @@ public:
                 ScopedTimer t(ctx.report, "sources");
                 p = diffusion::make_problem(d, m, ctx.light, group, opt_.delta_scaling);
             }
-            const auto res = diffusion::solve_diffusion(d, p, opt_, ctx.report);
-            solves += static_cast<int>(group.rhs_band.size());
+            const auto res = diffusion::solve_diffusion(d, p, solve_opt, ctx.report);
+            solves += static_cast<int>(group.rhs_weights.size());
             for (const auto& use : group.bands) {
                 auto& fl = out.fluence[static_cast<size_t>(use.band)];
                 auto& fx = out.flux[static_cast<size_t>(use.band)];
-                const auto& U = res.U[static_cast<size_t>(use.rhs)];
-                const auto& F = res.flux[static_cast<size_t>(use.rhs)];
-                const double s = use.scale;
                 // The delta-scaled solve leaves the forward-peak light in T' (delta_scaling.h).
                 for_each_cell(fl.allocated(), [&](int i, int j, int k) {
                     Vec3 peak_flux;
                     const double peak = diffusion::forward_peak_fluence(
                         ctx.light, group.optics, use.band, opt_.delta_scaling, i, j, k, &peak_flux);
-                    fl(i, j, k) = 4.0 * std::numbers::pi * s * U(i, j, k) + peak;
-                    for (int c = 0; c < 3; ++c) fx(i, j, k, c) = s * F(i, j, k, c) + peak_flux[c];
+                    double u = 0.0, f[3] = {0.0, 0.0, 0.0};
+                    for (const auto& t : use.terms) {
+                        u += t.scale * res.U[static_cast<size_t>(t.rhs)](i, j, k);
+                        for (int c = 0; c < 3; ++c) f[c] += t.scale * res.flux[static_cast<size_t>(t.rhs)](i, j, k, c);
+                    }
+                    if (linear && opt_.clamp_negative) u = std::max(u, 0.0);
+                    fl(i, j, k) = 4.0 * std::numbers::pi * u + peak;
+                    for (int c = 0; c < 3; ++c) fx(i, j, k, c) = f[c] + peak_flux[c];
                 });
             }
         }

@@ -27,14 +27,15 @@ DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const Lig
     });
     // Per unit density and unit E0 T': Q0' = q0, Q1' = g' q0 w, G = g' q0 w / sigma_tr.
     const double q0 = o.sigma_t * o.albedo * (1.0 - s.f) / (4.0 * std::numbers::pi);
-    for (int b : group.rhs_band) {
+    for (const std::vector<double>& weight : group.rhs_weights) {
         Field<double> Q0(d.local(), 0, 1, 0.0), G(d.local(), 1, 3, 0.0);
         for_each_cell(d.local(), [&](int i, int j, int k) {
             if (p.kappa_tr(i, j, k) <= 0.0) return;
             double e = 0.0;
             Vec3 ew;
             for (size_t l = 0; l < light.lights.size(); ++l) {
-                const double et = band_value(light.lights[l].E0, b) *
+                if (weight[l] == 0.0) continue;
+                const double et = weight[l] *
                                   light.transmittance(static_cast<int>(l), s.sigma_t, i, j, k);
                 e += et;
                 ew += light.lights[l].w * et;

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <string>
 
 #include "diffusion_test_util.h"
@@ -109,6 +110,53 @@ TEST(DiffusionParallel, PetscGeometricMultigridAgrees) {
     EXPECT_GT(umax, 0.0);
     EXPECT_LE(diff, 100 * tol * umax);
     EXPECT_NE(its_mg, its_amg);
+}
+
+// Three bands with equal optics lit by a white sun and a blue "sky" light from another
+// direction (band_groups.h): 2 solves (one per light colour), and each band equals the band
+// solved alone (1 rhs) to the solver tolerance.
+TEST(DiffusionParallel, BandsShareSolvesByLightColour) {
+    const double tol = 1e-11;
+    Decomposition d(MPI_COMM_WORLD, {kN, kN, kN});
+    const Vec3 w_sky = normalized(Vec3{-0.5, 0.1, -1.0});
+    const std::vector<std::array<double, 2>> colour = {{1.0, 0.03}, {0.95, 0.05}, {0.85, 0.09}};  // sun, sky
+    auto light_of = [&](const std::vector<int>& bands) {
+        LightTransport sun = test::column_light(d, kH, kSun, 1.0, cumulus);
+        LightTransport sky = test::column_light(d, kH, w_sky, 1.0, cumulus);  // tau exact enough: any field works
+        LightTransport lt;
+        lt.lights = {sun.lights[0], sky.lights[0]};
+        lt.lights[1].name = "sky";
+        lt.lights[0].E0.clear();
+        lt.lights[1].E0.clear();
+        for (int b : bands) lt.lights[0].E0.push_back(colour[b][0]), lt.lights[1].E0.push_back(colour[b][1]);
+        lt.tau_rho = {std::move(sun.tau_rho[0]), std::move(sky.tau_rho[0])};
+        return lt;
+    };
+    auto solve = [&](const std::vector<int>& bands, Report& report) {
+        Medium m = test::make_medium(d, kH, kBand, cumulus);
+        m.bands.assign(bands.size(), kBand);
+        for (size_t b = 0; b < bands.size(); ++b) m.bands[b].name = "band" + std::to_string(bands[b]);
+        const LightTransport lt = light_of(bands);
+        DiffusionOptions opt;
+        opt.tolerance = tol;
+        auto model = make_diffusion_model(opt);
+        Scene scene;
+        DiffuseSolution sol;
+        model->solve(SolveContext{scene, d, m, lt, report}, sol);
+        return sol;
+    };
+    Report r3;
+    const DiffuseSolution all = solve({0, 1, 2}, r3);
+    EXPECT_EQ(r3.values()["diffusion"]["solves"].get<int>(), 2);
+    for (int b = 0; b < 3; ++b) {
+        Report r1;
+        const DiffuseSolution one = solve({b}, r1);
+        EXPECT_EQ(r1.values()["diffusion"]["solves"].get<int>(), 1);
+        const auto [diff, umax] = test::max_diff(one.fluence[0], all.fluence[static_cast<size_t>(b)], d.local(), MPI_COMM_WORLD);
+        if (test::world_rank() == 0) std::printf("band %d: 3 bands in 2 solves vs alone: max |diff| / max = %.2e\n", b, diff / umax);
+        EXPECT_GT(umax, 0.0);
+        EXPECT_LE(diff, 100 * tol * umax) << "band " << b;
+    }
 }
 
 // A grid PETSc cannot coarsen three times is refused with an Error (it used to crash).
