@@ -1,5 +1,7 @@
 #include "src/render/ground.h"
 
+#include <mpi.h>
+
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -24,6 +26,66 @@ GroundShading::GroundShading(const RenderInputs& in, const Decomposition& d)
             if (f.allocated().intersect(d.local().grown(1)) != d.local().grown(1))
                 throw Error("render: tau_rho must cover the rank's box plus 1 ghost layer");
     active_ = d.at_low_boundary(2);
+    periodic_ = {d.periodic(0), d.periodic(1)};
+    if (!shadows_) return;
+    // Side faces of every light's tau_rho on every rank: each rank fills the face cells it
+    // owns, the sum over ranks assembles them.
+    const Int3& n = in.medium.grid.n;
+    side_.resize(in.light.lights.size());
+    std::vector<double> all;
+    for (size_t l = 0; l < side_.size(); ++l) {
+        const Field<double>& tau = in.light.tau_rho[l];
+        for (int f = 0; f < 4; ++f) {
+            const int axis = f / 2, nt = n[1 - axis];
+            std::vector<double>& face = side_[l][static_cast<size_t>(f)];
+            face.assign(static_cast<size_t>(nt) * static_cast<size_t>(n[2]), 0.0);
+            const int c = f % 2 == 0 ? 0 : n[axis] - 1;  // the face's cell layer
+            if (c < owned_.lo[axis] || c >= owned_.hi[axis]) continue;
+            for (int k = owned_.lo[2]; k < owned_.hi[2]; ++k)
+                for (int t = owned_.lo[1 - axis]; t < owned_.hi[1 - axis]; ++t)
+                    face[static_cast<size_t>(k) * static_cast<size_t>(nt) + static_cast<size_t>(t)] =
+                        axis == 0 ? tau(c, t, k) : tau(t, c, k);
+        }
+        for (auto& face : side_[l]) all.insert(all.end(), face.begin(), face.end());
+    }
+    MPI_Allreduce(MPI_IN_PLACE, all.data(), static_cast<int>(all.size()), MPI_DOUBLE, MPI_SUM, d.comm());
+    size_t at = 0;
+    for (auto& faces : side_)
+        for (auto& face : faces) {
+            std::copy(all.begin() + static_cast<std::ptrdiff_t>(at),
+                      all.begin() + static_cast<std::ptrdiff_t>(at + face.size()), face.begin());
+            at += face.size();
+        }
+}
+
+double GroundShading::side_tau(size_t l, double qx, double qy) const {
+    const Int3& n = in_.medium.grid.n;
+    const Vec3 u = -in_.light.lights[l].w;  // toward the light, u.z > 0
+    // Entry of the ray q + s u (s >= 0, cell units) into [0, nx] x [0, ny] x [0, nz]: the
+    // latest entry over x and y (the ray starts at z = 0, below nothing).
+    const double q[2] = {qx, qy}, ud[2] = {u.x, u.y};
+    double s = 0.0;
+    int face = -1;
+    for (int a = 0; a < 2; ++a) {
+        if (q[a] >= 0.0 && q[a] <= n[a]) continue;
+        const bool low = q[a] < 0.0;  // enters through the low face
+        if (low ? !(ud[a] > 0.0) : !(ud[a] < 0.0)) return 0.0;  // moving away
+        const double sa = ((low ? 0.0 : n[a]) - q[a]) / ud[a];
+        if (sa > s) s = sa, face = 2 * a + (low ? 0 : 1);
+    }
+    if (face < 0) return 0.0;
+    const double p[3] = {qx + s * u.x, qy + s * u.y, s * u.z};
+    const int axis = face / 2, ta = 1 - axis;
+    if (p[ta] < 0.0 || p[ta] > n[ta] || p[2] > n[2]) return 0.0;  // misses the domain
+    // Bilinear between the face cells' centres, clamped to the face.
+    const int nt = n[ta];
+    const double ct = std::clamp(p[ta] - 0.5, 0.0, nt - 1.0), cz = std::clamp(p[2] - 0.5, 0.0, n[2] - 1.0);
+    const int t0 = static_cast<int>(ct), k0 = static_cast<int>(cz);
+    const int t1 = std::min(t0 + 1, nt - 1), k1 = std::min(k0 + 1, n[2] - 1);
+    const double ft = ct - t0, fz = cz - k0;
+    const std::vector<double>& f = side_[l][static_cast<size_t>(face)];
+    auto at = [&](int k, int t) { return f[static_cast<size_t>(k) * static_cast<size_t>(nt) + static_cast<size_t>(t)]; };
+    return (1 - fz) * ((1 - ft) * at(k0, t0) + ft * at(k0, t1)) + fz * ((1 - ft) * at(k1, t0) + ft * at(k1, t1));
 }
 
 bool GroundShading::shade(const Vec3& o, const Vec3& d, double* L) const {
@@ -31,8 +93,11 @@ bool GroundShading::shade(const Vec3& o, const Vec3& d, double* L) const {
     const Grid& grid = in_.medium.grid;
     const double t = (grid.origin.z - o.z) / d.z;
     if (!(t > 0.0)) return false;
-    const double qx = (o.x + t * d.x - grid.origin.x) / grid.h, qy = (o.y + t * d.y - grid.origin.y) / grid.h;
+    double qx = (o.x + t * d.x - grid.origin.x) / grid.h, qy = (o.y + t * d.y - grid.origin.y) / grid.h;
     const int nx = grid.n[0], ny = grid.n[1];
+    // Along a periodic axis the medium, and so its shadow, repeats.
+    if (periodic_[0]) qx -= nx * std::floor(qx / nx);
+    if (periodic_[1]) qy -= ny * std::floor(qy / ny);
     const int ix = std::clamp(qx < 0 ? -1 : static_cast<int>(std::min(qx, 2.0 * nx)), 0, nx - 1);
     const int iy = std::clamp(qy < 0 ? -1 : static_cast<int>(std::min(qy, 2.0 * ny)), 0, ny - 1);
     if (ix < owned_.lo[0] || ix >= owned_.hi[0] || iy < owned_.lo[1] || iy >= owned_.hi[1]) return false;
@@ -56,6 +121,8 @@ bool GroundShading::shade(const Vec3& o, const Vec3& d, double* L) const {
             const Field<double>& f = in_.light.tau_rho[l];
             tau = (1 - fy) * ((1 - fx) * f(i0, j0, k) + fx * f(i1, j0, k)) +
                   fy * ((1 - fx) * f(i0, j1, k) + fx * f(i1, j1, k));
+        } else if (shadows_) {
+            tau = side_tau(l, qx, qy);
         }
         for (int b = 0; b < nb; ++b) {
             const double T = tau > 0.0 ? std::exp(-in_.medium.bands[static_cast<size_t>(b)].sigma_t * tau) : 1.0;

@@ -2,15 +2,22 @@
 // infinite in x and y, lit by the directional lights (Max 1995 Fig. 5 puts the cloud over a
 // ground; the shading is Lambert's law). Radiance leaving the ground, per band:
 //   L_b = (albedo_b / π) Σ_l E0_{l,b} max(0, -w_l·z) T_{l,b}(x_ground)
-// T_{l,b} = 1 outside the domain's footprint (and in mode single_unshadowed); inside it,
-// exp(-sigma_t,b tau_rho_l) with tau_rho_l bilinear between the cell centres of the bottom cell
-// layer (k = 0), clamped to the footprint (so the ground sees the bottom layer's shadow; the
-// half cell below the layer centres is not added).
-// Only ranks whose box touches the bottom hold that layer: the rank owning the hit point's
-// (x, y) column at k = 0 (hit point clamped into the footprint) shades a pixel; the others do
-// not, so each ground pixel is shaded exactly once. Not collective.
+// T_{l,b} = exp(-sigma_t,b tau_rho_l) (1 in mode single_unshadowed), tau_rho_l from the light
+// pass (the optical depth per unit sigma_t from a cell centre out of the domain toward light l):
+// - inside the domain's footprint (or anywhere along a periodic axis, wrapped into it):
+//   bilinear between the cell centres of the bottom cell layer (k = 0), clamped to the
+//   footprint (the half cell below the layer centres is not added);
+// - outside it: the ray from the ground point toward the light either misses the domain
+//   (T = 1) or enters it through a side face, where tau_rho is bilinear between the centres of
+//   that face's cells (the domain's outer cell layer), clamped to the face. The side faces of
+//   every light are gathered on all ranks once (4 (nx + ny) nz / 2 values per light), so an
+//   oblique sun's shadow continues past the footprint.
+// The rank owning the hit point's (x, y) column at k = 0 (hit point clamped into the
+// footprint) shades a pixel; the others do not, so each ground pixel is shaded exactly once.
+// The constructor is collective (the side-face gather); shade() is not.
 #pragma once
 
+#include <array>
 #include <vector>
 
 #include "src/core/decomposition.h"
@@ -20,7 +27,8 @@ namespace nimbus {
 
 class GroundShading {
 public:
-    // Throws Error when the ground needs the light pass's tau_rho and it is missing.
+    // Collective over d.comm(). Throws Error when the ground needs the light pass's tau_rho and
+    // it is missing.
     GroundShading(const RenderInputs& in, const Decomposition& d);
 
     // False on ranks that own no part of the bottom layer (they never shade).
@@ -30,8 +38,15 @@ public:
     bool shade(const Vec3& o, const Vec3& d, double* L) const;
 
 private:
+    // tau_rho of light l where the ray from ground point (qx, qy) (cells) toward the light
+    // enters the domain through a side face; 0 when it misses the domain.
+    double side_tau(size_t l, double qx, double qy) const;
+
     const RenderInputs& in_;
+    // side_[l][f]: tau_rho of light l on side face f (x-, x+, y-, y+), [k][tangential cell].
+    std::vector<std::array<std::vector<double>, 4>> side_;
     Box owned_;
+    std::array<bool, 2> periodic_{false, false};  // x, y
     bool active_ = false;
     bool shadows_ = false;
     std::vector<double> albedo_;  // per band

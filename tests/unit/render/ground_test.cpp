@@ -1,8 +1,11 @@
 // The ground background: a Lambertian plane at the domain's bottom lit by the sun,
 //   L = (albedo/π) E0 |w_z| T_sun(ground),
-// with T_sun = 1 outside the domain footprint and exp(-sigma_t tau_rho) from the bottom cell
-// layer inside it. A homogeneous absorbing layer high in the domain (cells k = 10..13 of 16)
-// shadows the whole footprint by exp(-sigma_t rho D/|w_z|); without it nothing is shadowed.
+// with T_sun = exp(-sigma_t tau_rho): inside the domain footprint from the bottom cell layer;
+// outside it from the side face where the ray toward the sun enters the domain (1 when it
+// misses the domain). A homogeneous absorbing layer high in the domain (cells k = 10..13 of 16)
+// shadows the whole footprint by exp(-sigma_t rho D/|w_z|), and, with the sun tilted toward
+// +x, a strip of ground beyond the x+ edge: there the sun ray enters the x+ face at height
+// z_p and crosses the part of the layer above z_p. Without the layer nothing is shadowed.
 // The camera sits below the layer looking down, so view rays that reach the ground cross
 // only empty cells (view transmittance 1); rays that miss the ground see the sky colour.
 #include <gtest/gtest.h>
@@ -48,7 +51,20 @@ void check_ground(bool with_cloud, const Int3& proc_dims) {
     const Camera cam(s.camera, g);
     const double lit = 0.4 / std::numbers::pi * E0 * std::abs(w.z);
     const double shadow = std::exp(-2.0 * rho * (k_top - k_bot) * g.h / std::abs(w.z));
-    int inside = 0, outside = 0, sky = 0;
+    // Outside the footprint (cells): the ray from (qx, qy, 0) along -w enters the x+ face at
+    // height z_p = (qx - 16) |w_z| / w_x when qx > 16 (it moves toward -x); elsewhere it
+    // misses. The face interpolates tau_rho linearly between cell centres, exact except
+    // within a cell of the layer's faces (z = 10, 14), where those pixels are not checked.
+    auto outside_T = [&](double qx, double qy, bool& checked) {
+        checked = true;
+        if (!(qx > 16.0) || qy < 0.0 || qy > 16.0) return 1.0;
+        const double zp = (qx - 16.0) * std::abs(w.z) / w.x;
+        if (zp > 16.0) return 1.0;
+        if (std::abs(zp - k_bot) < 1.0 || std::abs(zp - k_top) < 1.0 || zp > 15.5) checked = false;
+        const double depth = std::clamp(k_top - std::max(zp, double(k_bot)), 0.0, double(k_top - k_bot));
+        return std::exp(-2.0 * rho * depth * g.h / std::abs(w.z));
+    };
+    int inside = 0, outside = 0, outside_shadowed = 0, sky = 0;
     for (int y = 0; y < image.height; ++y)
         for (int x = 0; x < image.width; ++x) {
             const Vec3 d = cam.pixel_direction(x, y);
@@ -63,14 +79,21 @@ void check_ground(bool with_cloud, const Int3& proc_dims) {
             const double t = -cam.position().z / d.z;
             const double gx = cam.position().x + t * d.x, gy = cam.position().y + t * d.y;
             const bool in = gx >= 0 && gx < 1 && gy >= 0 && gy < 1;
-            const double want = lit * (in ? shadow : 1.0);
+            bool checked = true;
+            const double T = in ? shadow : outside_T(gx * 16.0, gy * 16.0, checked);
+            if (!checked) continue;
+            const double want = lit * T;
             (in ? inside : outside)++;
+            if (!in && T < 0.99) ++outside_shadowed;
             EXPECT_TRUE(test::close_rel(px[0], want, 1e-6)) << x << "," << y << ": " << px[0] << " vs " << want;
             EXPECT_FLOAT_EQ(px[0], px[1]);
             EXPECT_EQ(px[3], 0.0f);  // the view ray crossed no density
         }
     EXPECT_GT(inside, 100);
     EXPECT_GT(outside, 50);
+    if (with_cloud) {
+        EXPECT_GT(outside_shadowed, 10);  // the shadow continues past the footprint
+    }
     EXPECT_GT(sky, 0);
 }
 
