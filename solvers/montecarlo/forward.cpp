@@ -62,6 +62,20 @@ std::vector<std::int64_t> photons_per_light(const std::vector<double>& power, st
     return n;
 }
 
+StopEta eta_to_stop(const MonteCarloOptions& opt, int done, double trace_seconds, double elapsed,
+                    double rel_error) {
+    const double per_batch = trace_seconds / std::max(1, done);
+    StopEta eta{std::max(0, opt.batches - done) * per_batch, "photon count"};
+    if (opt.time_budget > 0 && opt.time_budget - elapsed < eta.seconds)
+        eta = {std::max(0.0, opt.time_budget - elapsed), "time budget"};
+    if (opt.target_rel_error > 0 && rel_error > 0) {
+        const double r = rel_error / opt.target_rel_error;
+        const double left = std::max(0.0, std::ceil(done * r * r) - done) * per_batch;
+        if (left < eta.seconds) eta = {left, "target error (estimated from 1/sqrt(batches))"};
+    }
+    return eta;
+}
+
 ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                             const std::vector<DirectionalLight>& lights,
                             const MonteCarloOptions& opt, const ForwardSettings& settings) {
@@ -300,7 +314,6 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                       all_counters[static_cast<size_t>(r0) * nb].data(), cnt * nb * ncounters,
                       MPI_DOUBLE, MPI_SUM, d.comm());
         done = r1;
-        progress.update(done);
         // Relative standard error of the total diffuse power over the completed batches.
         double m = 0.0, m2 = 0.0;
         for (int b = 0; b < done; ++b) {
@@ -312,6 +325,11 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
         m /= done;
         const double var = std::max(0.0, m2 / done - m * m) * done / std::max(1, done - 1);
         res.rel_error = m > 0 ? std::sqrt(var / done) / m : 0.0;
+        if (d.rank() == 0) {
+            const double now = wall_time();
+            const StopEta eta = eta_to_stop(opt, done, now - t_setup, now - t_start, res.rel_error);
+            progress.update(done, eta.seconds, eta.until);
+        }
         int stop = 0;
         if (d.rank() == 0 && done < B) {
             const double elapsed = wall_time() - t_start;

@@ -94,6 +94,20 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                             const MonteCarloOptions& opt, const ForwardSettings& settings = {});
 
 
+// Time to the earliest stop that applies, for the progress log: the photon count (the batches
+// left, at the rate so far), the time budget (what is left of it: the run stops at the last
+// round that fits), and the target relative error, estimated as rel_error * sqrt(done / k)
+// after k batches (the standard error of a mean of k batch estimates falls as 1/sqrt(k));
+// the target is left out while rel_error is 0 (no diffuse light yet, no estimate).
+// done >= 1 of opt.batches batches took trace_seconds; elapsed: seconds since trace_forward
+// began (the time budget's clock). Not collective.
+struct StopEta {
+    double seconds = 0.0;
+    std::string until;  // "photon count", "time budget", "target error (estimated from 1/sqrt(batches))"
+};
+StopEta eta_to_stop(const MonteCarloOptions& opt, int done, double trace_seconds, double elapsed,
+                    double rel_error);
+
 // Photon count of each light: proportional to its power summed over bands (E0 A_projected),
 // at least `batches` per light that carries power, rounded by largest remainder so that the
 // counts sum to `total` exactly (unless the minimum alone exceeds it). Same on every rank.

@@ -9,15 +9,27 @@ Progress::Progress(std::string what, double total, bool speaker, double quiet, d
     : what_(std::move(what)), total_(total), start_(wall_time()), last_(start_),
       speaker_(speaker), quiet_(quiet), interval_(interval) {}
 
-void Progress::update(double done) {
-    if (!speaker_) return;
+bool Progress::due() {
+    if (!speaker_) return false;
     const double now = wall_time();
-    if (now - start_ < quiet_ || now - last_ < interval_) return;
+    if (now - start_ < quiet_ || now - last_ < interval_) return false;
     last_ = now;
     spoke_ = true;
+    return true;
+}
+
+void Progress::update(double done) {
+    if (!due()) return;
     const double frac = total_ > 0 ? done / total_ : 0.0;
-    const double eta = frac > 0 ? (now - start_) * (1.0 - frac) / frac : 0.0;
-    log::info("{}: {:5.1f}% ({:.1f} s elapsed, ETA {:.1f} s)", what_, 100.0 * frac, now - start_, eta);
+    const double eta = frac > 0 ? (last_ - start_) * (1.0 - frac) / frac : 0.0;
+    log::info("{}: {:5.1f}% ({:.1f} s elapsed, ETA {:.1f} s)", what_, 100.0 * frac, last_ - start_, eta);
+}
+
+void Progress::update(double done, double eta, const std::string& until) {
+    if (!due()) return;
+    const double frac = total_ > 0 ? done / total_ : 0.0;
+    log::info("{}: {:5.1f}% ({:.1f} s elapsed, ETA {:.1f} s at the {})", what_, 100.0 * frac, last_ - start_, eta,
+              until);
 }
 
 void Progress::finish() {

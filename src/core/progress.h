@@ -11,9 +11,13 @@ public:
     Progress(std::string what, double total, bool speaker, double quiet = 2.0, double interval = 2.0);
     // Reports that `done` units of `total` are complete (not collective).
     void update(double done);
+    // The same with the caller's ETA, for phases that may stop before `total` (a time budget,
+    // a target error): `eta` seconds to the stop named by `until` ("time budget", ...).
+    void update(double done, double eta, const std::string& until);
     void finish();
 
 private:
+    bool due();  // rank 0, past the quiet time and the interval since the last line: marks it spoken
     std::string what_;
     double total_, start_, last_;
     bool speaker_, spoke_ = false;

@@ -1,12 +1,17 @@
 // Verification of the forward Monte Carlo (solvers/montecarlo): Philox known answers; slab
-// reflectance/transmittance and interior fluence against the independent slab reference
-// (z-tests with a fixed seed); energy balance; pure absorber and Beer-Lambert; same seed same
-// result; 1 rank (MPI_COMM_SELF) against all ranks; the replicated-memory limit; the same
-// checks with the forced first collision (ForwardSettings::forced_first_collision).
+// reflectance/transmittance and interior fluence against the independent slab reference on
+// the issue's whole grid of 24 cases (z-tests with fixed seeds); energy balance; pure absorber
+// and Beer-Lambert; same seed same result; 1 rank (MPI_COMM_SELF) against all ranks; the
+// replicated-memory limit; the same checks with the forced first collision
+// (ForwardSettings::forced_first_collision); the stops at a target error and at a time budget,
+// and the progress ETA.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
+#include <vector>
 
 #include "solvers/montecarlo/forward.h"
 #include "solvers/montecarlo/montecarlo.h"
@@ -58,32 +63,34 @@ struct SlabCase {
     std::int64_t photons;
 };
 
-class SlabAgainstReference : public ::testing::TestWithParam<SlabCase> {};
-
-// R and T (diffuse only) within 3 standard errors of the slab reference; the per-cell interior
-// fluence: z = (MC - reference cell average) / stderr has RMS ≈ 1 over the cells and no
-// |z| > 5 (batch means with 32 batches: z is t-distributed with 31 degrees of freedom).
-TEST_P(SlabAgainstReference, ReflectanceTransmittanceAndProfile) {
-    const SlabCase c = GetParam();
-    Slab slab(MPI_COMM_WORLD, c.tau0, c.albedo, c.g);
-    const ForwardResult r = trace_forward(slab.d, slab.m, {beam(c.mu0)}, options(c.photons));
+// One case of the slab grid below, 1.5 x 10^5 photons in 128 batches: R and T (diffuse only)
+// and the direct beam within 3.5 standard errors of the slab reference; the per-cell interior
+// fluence z = (MC - reference cell average) / stderr has RMS in [0.85, 1.25] over the 2048 cells
+// and no |z| > 5.5. Returns the z-values of R and T.
+std::array<double, 2> check_slab_case(double tau0, double albedo, double g, double mu0, std::uint64_t seed) {
+    constexpr std::int64_t kPhotons = 150000;
+    Slab slab(MPI_COMM_WORLD, tau0, albedo, g);
+    MonteCarloOptions o = options(kPhotons, seed);
+    o.batches = 128;
+    const ForwardResult r = trace_forward(slab.d, slab.m, {beam(mu0)}, o);
     const Counters& m = r.counters[0];
     const Counters& se = r.counters_stderr[0];
     const double P_in = m[incident];
-    EXPECT_NEAR(P_in, c.mu0 * 64.0, 1e-9);
+    EXPECT_NEAR(P_in, mu0 * 64.0, 1e-9);
     const double R = m[escaped_zhi] / P_in, sR = se[escaped_zhi] / P_in;
     const double T = m[escaped_zlo] / P_in, sT = se[escaped_zlo] / P_in;
 
-    test::SlabProblem p{c.tau0, c.albedo, c.g, c.mu0};
+    test::SlabProblem p{tau0, albedo, g, mu0};
     p.profile_levels = 64;
     const test::SlabSolution ref = test::solve_slab(p);
-    EXPECT_NEAR(R, ref.reflected, 3.0 * sR) << "R: MC " << R << " ± " << sR << ", reference " << ref.reflected;
-    EXPECT_NEAR(T, ref.transmitted_diffuse, 3.0 * sT) << "T: MC " << T << " ± " << sT << ", reference " << ref.transmitted_diffuse;
+    const double zR = (R - ref.reflected) / sR, zT = (T - ref.transmitted_diffuse) / sT;
+    EXPECT_LT(std::abs(zR), 3.5) << "R: MC " << R << " ± " << sR << ", reference " << ref.reflected;
+    EXPECT_LT(std::abs(zT), 3.5) << "T: MC " << T << " ± " << sT << ", reference " << ref.transmitted_diffuse;
     EXPECT_LT(sR, 0.01 * ref.reflected + 1e-3);  // the estimate is actually informative
     // direct beam: binomial; its batch stderr is 0 when no photon gets through (tau0/mu0 = 20)
-    const double t_dir = std::exp(-c.tau0 / c.mu0);
-    const double s_dir = std::max(se[escaped_direct] / P_in, std::sqrt(t_dir * (1 - t_dir) / c.photons));
-    EXPECT_NEAR(m[escaped_direct] / P_in, t_dir, 3.0 * s_dir);
+    const double t_dir = std::exp(-tau0 / mu0);
+    const double s_dir = std::max(se[escaped_direct] / P_in, std::sqrt(t_dir * (1 - t_dir) / kPhotons));
+    EXPECT_NEAR(m[escaped_direct] / P_in, t_dir, 3.5 * s_dir);
 
     // Cell k spans depths tau0 (31 - k, 32 - k) / 32: Simpson over reference levels.
     double z2 = 0.0, zmax = 0.0, count = 0.0;
@@ -102,23 +109,62 @@ TEST_P(SlabAgainstReference, ReflectanceTransmittanceAndProfile) {
     const double rms = std::sqrt(tot[0] / tot[1]);
     EXPECT_GT(rms, 0.85);
     EXPECT_LT(rms, 1.25);
-    EXPECT_LT(zmax_all, 5.0);
+    EXPECT_LT(zmax_all, 5.5);
     if (test::world_rank() == 0)
-        std::printf("    tau0 %g a %g g %g mu0 %g: R %.5f ± %.5f (ref %.5f), T %.5f ± %.5f (ref %.5f), "
-                    "fluence z rms %.3f max %.2f, %.3g collisions/s\n",
-                    c.tau0, c.albedo, c.g, c.mu0, R, sR, ref.reflected, T, sT, ref.transmitted_diffuse,
-                    rms, zmax_all, static_cast<double>(r.collisions) / r.seconds);
+        std::printf("    tau0 %4g a %4g g %4g mu0 %g: R %.5f ± %.5f (ref %.5f, z %+.2f), T %.5f ± %.5f "
+                    "(ref %.5f, z %+.2f), fluence z rms %.3f max %.2f\n",
+                    tau0, albedo, g, mu0, R, sR, ref.reflected, zR, T, sT, ref.transmitted_diffuse, zT, rms,
+                    zmax_all);
+    return {zR, zT};
 }
 
-// Every value of the issue's grid at least once: g {0, 0.85}, albedo {0.9, 0.99, 1},
-// tau0 {1, 10}, incidence {0°, 60°}.
-INSTANTIATE_TEST_SUITE_P(Slabs, SlabAgainstReference,
-                         ::testing::Values(SlabCase{1.0, 0.9, 0.0, 1.0, 200000},
-                                           SlabCase{10.0, 0.99, 0.85, 0.5, 100000},
-                                           SlabCase{1.0, 1.0, 0.85, 0.5, 200000},
-                                           SlabCase{10.0, 1.0, 0.0, 1.0, 40000},
-                                           SlabCase{10.0, 0.9, 0.85, 1.0, 100000},
-                                           SlabCase{1.0, 0.99, 0.0, 0.5, 200000}));
+// The issue's slab grid, every combination: g {0, 0.85} x albedo {0.9, 0.99, 1} x tau0 {1, 10}
+// x incidence {0°, 60°}, 24 cases (check_slab_case), case i with seed 7 + i; jointly, the RMS
+// of the 48 R and T z-values lies in [0.6, 1.4].
+//
+// Why this criterion rather than the issue's literal one (3 standard errors per value at 10^5
+// photons; the rates are for independent t-distributed z-values): that one fails by chance in
+// 15% (127 degrees of freedom) to 22% (31) of runs over 48 values, and its per-cell |z| < 5
+// over 24 x 2048 cells in 9% (127) to 65% (31): about 28% of runs in all with 128 batches,
+// 76% with 32, so a correct change elsewhere would often trip it. Measured at 10^5 photons:
+// seed 9 (g 0, a 0.9, tau0 10, normal) gave T z = -4.05, while 179 other seeds of that case
+// gave |z| < 2.8 with mean -0.05 (no bias), and 600 seeds of another case (albedo 1, tau0 10,
+// 60°) showed no heavy tail: noise.
+// - The same tolerance on the estimate, a less noisy estimate: 3.5 standard errors at 1.5x the
+//   photons is 3.5 / sqrt(1.5) = 2.86 of the old ones (per cell 5.5 -> 4.49), narrower than
+//   before, so the test is at least as powerful against any bias the old one was meant to
+//   catch (R and T of one case +3 old standard errors: caught 82% against 79%), and chance
+//   failures drop to about 5% of runs.
+// - The joint RMS bound detects what no per-value bound can: overestimated standard errors
+//   (every |z| small; z scaled by 0.5: 97% against 0%), and it catches a bias shared by many
+//   cases (+1 old standard error in all 48: 93% against 69%).
+// - 128 batches rather than 32: the same photons (so the same estimates), but standard errors
+//   with 127 degrees of freedom instead of 31, whose tails made most chance failures of the
+//   per-cell bound (|t_31| > 5 is 12x as likely as |t_127| > 5). With 32 batches and seed 7, one
+//   cell (g 0, a 1, tau0 10, 60°) had z = -6.30; with 128 batches, the same photons, 4.28.
+// - Case i draws with seed 7 + i: cases that share a seed share their photons' first
+//   collisions, so their z-values move together (seen: zR 1.31, 1.20, 1.17 for albedo 0.9,
+//   0.99, 1 with one seed), and the RMS bound needs independent values.
+TEST(SlabAgainstReference, EveryCaseOfTheIssuesGrid) {
+    std::vector<double> z_rt;
+    std::uint64_t seed = 7;
+    for (const double g : {0.0, 0.85})
+        for (const double albedo : {0.9, 0.99, 1.0})
+            for (const double tau0 : {1.0, 10.0})
+                for (const double mu0 : {1.0, 0.5}) {
+                    SCOPED_TRACE(::testing::Message() << "tau0 " << tau0 << " albedo " << albedo << " g " << g
+                                                      << " mu0 " << mu0 << " seed " << seed);
+                    const std::array<double, 2> z = check_slab_case(tau0, albedo, g, mu0, seed++);
+                    z_rt.insert(z_rt.end(), z.begin(), z.end());
+                }
+    ASSERT_EQ(z_rt.size(), 48u);
+    double z2 = 0.0;
+    for (const double z : z_rt) z2 += z * z;
+    const double rms = std::sqrt(z2 / static_cast<double>(z_rt.size()));
+    EXPECT_GT(rms, 0.6);
+    EXPECT_LT(rms, 1.4);
+    if (test::world_rank() == 0) std::printf("    R and T over the 24 cases: z rms %.3f\n", rms);
+}
 
 // A cloud-like blob, no periodic axes, sun and sky: every watt that enters is absorbed or
 // escapes. Exactly (round-off) when roulette's zero-mean weight change is counted, and to
@@ -341,6 +387,88 @@ TEST(Forward, StopsAtTargetRelativeError) {
     EXPECT_EQ(r.stop_reason, "target_rel_error");
     EXPECT_LT(r.batches, 32);
     EXPECT_LT(r.rel_error, 0.05);
+}
+
+// model.montecarlo.time_budget with far more photons than fit (the whole run, 8 x 10^7 photons,
+// would take minutes): the run stops between rounds of batches, before the round that would
+// overrun the budget, so within the budget plus a margin and after most of it, with
+// stop_reason "time_budget". The result is that of the batches it completed: equal to
+// round-off to a run of exactly those photons without a budget (so normalized like any run),
+// with the energy balance closed.
+TEST(Forward, StopsAtTheTimeBudget) {
+    constexpr int kBatches = 4096;
+    constexpr std::int64_t kPerBatch = 20000;  // ~30 ms per batch on one core
+    constexpr double kBudget = 0.5;            // s
+    Slab slab(MPI_COMM_WORLD, 2.0, 0.99, 0.85);
+    MonteCarloOptions o = options(kBatches * kPerBatch);
+    o.batches = kBatches;
+    o.time_budget = kBudget;
+    const ForwardResult r = trace_forward(slab.d, slab.m, {beam(0.8)}, o);
+    EXPECT_EQ(r.stop_reason, "time_budget");
+    EXPECT_GE(r.batches, 2);
+    EXPECT_LT(r.batches, kBatches / 4);
+    EXPECT_EQ(r.photons, r.batches * kPerBatch);
+    EXPECT_LT(r.seconds, 2.0 * kBudget);
+    EXPECT_GT(r.seconds, 0.5 * kBudget);
+    if (test::world_rank() == 0)
+        std::printf("    budget %.2f s: %d batches, %.3f s (tracing %.3f s)\n", kBudget, r.batches, r.seconds,
+                    r.trace_seconds);
+
+    MonteCarloOptions same = options(r.batches * kPerBatch);
+    same.batches = r.batches;
+    const ForwardResult e = trace_forward(slab.d, slab.m, {beam(0.8)}, same);
+    EXPECT_EQ(e.stop_reason, "photons");
+    EXPECT_EQ(e.photons, r.photons);
+    EXPECT_EQ(e.collisions, r.collisions);
+    double worst = 0.0, peak = 0.0;
+    for_each_cell(slab.d.local(), [&](int i, int j, int k) {
+        worst = std::max(worst, std::abs(r.fluence[0](i, j, k) - e.fluence[0](i, j, k)));
+        worst = std::max(worst, std::abs(r.fluence_stderr[0](i, j, k) - e.fluence_stderr[0](i, j, k)));
+        peak = std::max(peak, e.fluence[0](i, j, k));
+    });
+    EXPECT_GT(peak, 0.0);
+    EXPECT_LE(worst, 1e-12 * peak);
+    const Counters& c = r.counters[0];
+    for (int q = 0; q < ncounters; ++q) {
+        EXPECT_NEAR(c[q], e.counters[0][q], 1e-12 * c[incident]);
+        EXPECT_NEAR(r.counters_stderr[0][q], e.counters_stderr[0][q], 1e-12 * c[incident]);
+    }
+    EXPECT_NEAR(c[incident], 0.8 * 64.0, 1e-9);
+    double escaped = c[escaped_direct];
+    for (int f = 0; f < 6; ++f) escaped += c[escaped_xlo + f];
+    EXPECT_NEAR(c[absorbed] + escaped - c[roulette_net], c[incident], 1e-12 * c[incident]);
+    EXPECT_NEAR(c[absorbed] + escaped, c[incident], 1e-3 * c[incident]);
+}
+
+// The progress line's ETA is the time to the earliest stop that applies: the photon count, what
+// is left of the time budget, or the target error at rel_error ∝ 1/sqrt(batches).
+TEST(Forward, EtaIsTheEarliestStop) {
+    MonteCarloOptions o = options(1000000);
+    o.batches = 100;
+    // 10 batches in 1 s: 90 more at 0.1 s each
+    StopEta e = eta_to_stop(o, 10, 1.0, 1.2, 0.02);
+    EXPECT_NEAR(e.seconds, 9.0, 1e-12);
+    EXPECT_EQ(e.until, "photon count");
+    // the log this fixes: 2.2% done after 2 s, ETA 89 s, with a 3 s budget; now 1 s
+    o.time_budget = 3.0;
+    e = eta_to_stop(o, 10, 1.8, 2.0, 0.02);
+    EXPECT_NEAR(e.seconds, 1.0, 1e-12);
+    EXPECT_EQ(e.until, "time budget");
+    e = eta_to_stop(o, 10, 1.8, 3.5, 0.02);  // past the budget (a round overran it): 0
+    EXPECT_EQ(e.seconds, 0.0);
+    // target 0.01 from 0.02 after 10 batches: 4x the batches, 30 more at 0.1 s
+    o.time_budget = 0.0;
+    o.target_rel_error = 0.01;
+    e = eta_to_stop(o, 10, 1.0, 1.2, 0.02);
+    EXPECT_NEAR(e.seconds, 3.0, 1e-12);
+    EXPECT_EQ(e.until.rfind("target error", 0), 0u);
+    o.time_budget = 3.0;  // the budget ends first (1.8 s left)
+    EXPECT_EQ(eta_to_stop(o, 10, 1.0, 1.2, 0.02).until, "time budget");
+    o.time_budget = 0.0;  // reached: 0; no estimate yet (rel_error 0): the photon count
+    EXPECT_EQ(eta_to_stop(o, 10, 1.0, 1.2, 0.005).seconds, 0.0);
+    EXPECT_EQ(eta_to_stop(o, 10, 1.0, 1.2, 0.0).until, "photon count");
+    o.target_rel_error = 0.001;  // beyond the photon count: the photon count
+    EXPECT_EQ(eta_to_stop(o, 10, 1.0, 1.2, 0.02).until, "photon count");
 }
 
 }  // namespace
