@@ -5,7 +5,7 @@
 // PNG: 8-bit RGBA through libpng's simplified write API, which also writes the sRGB chunk;
 // colour = srgb8(v * exposure) (io/output/srgb.h); opaque (alpha 255), because the colour
 // already holds the background seen through the volume (the EXR keeps the volume's alpha).
-// Both go to "<path>.tmp" first and are renamed into place when complete.
+// A failed write removes what it wrote; naming (temporaries, commit) is the caller's.
 #include "io/output/image_io.h"
 
 #include <ImfChannelList.h>
@@ -13,11 +13,14 @@
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
 #include <ImfOutputFile.h>
+#include <ImfStdIO.h>
 #include <png.h>
 
+#include <cerrno>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <system_error>
 #include <vector>
 
@@ -41,14 +44,11 @@ void check_image(const std::string& path, const Image& img) {
         throw Error("cannot write image file '" + path + "': stderr_rgb has the wrong size");
 }
 
-// Renames tmp to path; on failure removes tmp and throws.
-void move_into_place(const std::string& tmp, const std::string& path) {
+// Removes a partly written file and throws the write error.
+[[noreturn]] void fail(const std::string& path, const std::string& why) {
     std::error_code ec;
-    fs::rename(tmp, path, ec);
-    if (ec) {
-        fs::remove(tmp, ec);
-        throw Error("cannot write image file '" + path + "': " + ec.message());
-    }
+    fs::remove(path, ec);
+    throw Error("cannot write image file '" + path + "': " + why);
 }
 
 Imf::Slice float_slice(const float* base, size_t components, int width, float fill = 0.0f) {
@@ -61,7 +61,10 @@ Imf::Slice float_slice(const float* base, size_t components, int width, float fi
 
 void write_exr(const std::string& path, const Image& img) {
     check_image(path, img);
-    const std::string tmp = path + ".tmp";
+    // Our own stream: OpenEXR writes the offset table and closes its own stream in
+    // destructors, which swallow errors (a disk filling up at the last block).
+    std::ofstream os(path, std::ios::binary | std::ios::trunc);
+    if (!os) fail(path, std::strerror(errno));
     try {
         Imf::Header header(img.width, img.height);
         header.compression() = Imf::ZIP_COMPRESSION;
@@ -76,15 +79,15 @@ void write_exr(const std::string& path, const Image& img) {
                 fb.insert(kStderrNames[c], float_slice(img.stderr_rgb.data() + c, 3, img.width));
             }
         }
-        Imf::OutputFile file(tmp.c_str(), header);
+        Imf::StdOFStream stream(os, path.c_str());
+        Imf::OutputFile file(stream, header);
         file.setFrameBuffer(fb);
         file.writePixels(img.height);
     } catch (const std::exception& e) {
-        std::error_code ec;
-        fs::remove(tmp, ec);
-        throw Error("cannot write image file '" + path + "': " + e.what());
+        fail(path, e.what());
     }
-    move_into_place(tmp, path);
+    os.close();
+    if (!os) fail(path, std::strerror(errno));  // errno of the failed write
 }
 
 Image read_exr(const std::string& path) {
@@ -126,22 +129,18 @@ void write_png(const std::string& path, const Image& img, double exposure) {
         bytes[p * 4 + 3] = 255;  // opaque: the colour already contains the background seen through the volume
     }
 
-    const std::string tmp = path + ".tmp";
     png_image png;
     std::memset(&png, 0, sizeof(png));
     png.version = PNG_IMAGE_VERSION;
     png.width = static_cast<png_uint_32>(img.width);
     png.height = static_cast<png_uint_32>(img.height);
     png.format = PNG_FORMAT_RGBA;  // 8-bit sRGB, straight alpha; libpng adds the sRGB chunk
-    const int ok = png_image_write_to_file(&png, tmp.c_str(), 0, bytes.data(), 0, nullptr);
+    const int ok = png_image_write_to_file(&png, path.c_str(), 0, bytes.data(), 0, nullptr);
     if (!ok) {
         const std::string why = png.message;
         png_image_free(&png);
-        std::error_code ec;
-        fs::remove(tmp, ec);
-        throw Error("cannot write image file '" + path + "': " + why);
+        fail(path, why);
     }
-    move_into_place(tmp, path);
 }
 
 }  // namespace nimbus

@@ -1,5 +1,6 @@
-// Images: OpenEXR (linear float RGBA, the data) and PNG (an sRGB preview).
-// Both are written under a temporary name and renamed when complete. Not collective.
+// Images: OpenEXR (linear float RGBA, the data) and PNG (an sRGB preview). Not collective.
+// The writers write path itself and remove it if they fail; a run passes the temporary name
+// from its OutputFiles (io/output/output_files.h), which makes all its outputs final together.
 #pragma once
 
 #include <string>

@@ -10,6 +10,7 @@
 
 #include "io/output/hdf5_writer.h"
 #include "io/output/image_io.h"
+#include "io/output/output_files.h"
 #include "io/scene/density_import.h"
 #include "io/scene/scene_toml.h"
 #include "solvers/light/sun_transmittance.h"
@@ -181,29 +182,33 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
     summary["decomposition"] = d.describe();
     summary["grid"] = {{"n", scene.grid.n}, {"h_m", scene.grid.h()}};
     summary["libraries"] = library_versions();
+    // Every output goes to a temporary name; commit() makes them all final together, so a
+    // failed run leaves none under its final name (and no temporary).
+    OutputFiles files(d.comm());
     if (scene.output.hdf5) {
         ScopedTimer t(report, "output/hdf5");
-        Hdf5Writer out(d, medium.grid, stem.string() + ".h5");
+        Hdf5Writer out(d, medium.grid, stem.string() + ".h5", files);
         write_fields(out, medium, light, diffuse, d);
         out.write_string_attribute("/scene", "toml", scene_to_toml(scene));
         out.write_string_attribute("/run", "report", summary.dump(2));
-        out.commit();
+        out.close();
         result.hdf5_path = out.path();
     }
     if (scene.output.image) {
-        std::string msg;
-        if (d.rank() == 0) {
-            try {
-                write_exr(stem.string() + ".exr", image);
-                write_png(stem.string() + ".png", image, scene.render.exposure);
-            } catch (const std::exception& e) {
-                msg = e.what();
-            }
-        }
-        check_collective(d.comm(), msg.empty(), msg);
         result.exr_path = stem.string() + ".exr";
         result.png_path = stem.string() + ".png";
+        const std::string exr = files.add(result.exr_path), png = files.add(result.png_path);
+        run_collective(d.comm(), [&] {
+            if (d.rank() != 0) return;
+            try {
+                write_exr(exr, image);
+                write_png(png, image, scene.render.exposure);
+            } catch (const Error& e) {
+                throw Error(files.with_final_names(e.what()));
+            }
+        });
     }
+    files.commit();
     // Rank 0's clock, so that the report is the same on every rank.
     double total = wall_time() - t_start;
     MPI_Bcast(&total, 1, MPI_DOUBLE, 0, d.comm());

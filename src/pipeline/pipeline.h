@@ -28,8 +28,9 @@ struct RunResult {
 // Loads the scene of opts (collective: every rank gets the same scene or the same Error).
 Scene load_run_scene(MPI_Comm comm, const RunOptions& opts);
 
-// Collective over comm. Throws Error (on every rank) on bad input or a failed solve; a failed
-// run leaves no output file under its final name.
+// Collective over comm. Throws Error (on every rank) on bad input, a failed solve or a failed
+// write; a failed run leaves no output file under its final name and no temporary (all
+// outputs are written under temporary names and renamed together at the end: OutputFiles).
 RunResult run_pipeline(MPI_Comm comm, const RunOptions& opts);
 RunResult run_pipeline(MPI_Comm comm, const Scene& scene);
 

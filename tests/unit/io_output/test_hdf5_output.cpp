@@ -147,10 +147,13 @@ TEST(Hdf5Writer, TemporaryFileUntilCommit) {
         Hdf5Writer w(d, grid, path);
         test::write_sample_fields(w, d);
         MPI_Barrier(MPI_COMM_WORLD);
-        EXPECT_TRUE(fs::exists(path + ".tmp"));
+        const std::string tmp = w.temporary_path();
+        EXPECT_NE(tmp, path);
+        EXPECT_EQ(fs::path(tmp).parent_path(), fs::path(path).parent_path());  // renamed in place
+        EXPECT_TRUE(fs::exists(tmp));
         EXPECT_FALSE(fs::exists(path));
         w.commit();
-        EXPECT_FALSE(fs::exists(path + ".tmp"));
+        EXPECT_FALSE(fs::exists(tmp));
         EXPECT_TRUE(fs::exists(path));
         EXPECT_TRUE(fs::exists(xdmf));
         EXPECT_THROW(w.commit(), Error);

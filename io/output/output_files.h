@@ -1,0 +1,51 @@
+// The commit protocol for every output file of a run (HDF5, XDMF, EXR, PNG): each file is
+// written under a temporary name unique to the run, "<final>.<token>.tmp", and commit() renames
+// them all to their final names only once every write has succeeded. A run that fails leaves no
+// file under its final name and no temporary: the set removes its temporaries when destroyed
+// uncommitted. The token (rank 0's pid and random bits, broadcast) keeps two runs writing to the
+// same folder at once from sharing a temporary.
+//
+//   OutputFiles files(comm);
+//   Hdf5Writer h5(d, grid, "out/nimbus.h5", files);   // registers nimbus.h5 and nimbus.xdmf
+//   ... h5.close();
+//   write_exr(files.add("out/nimbus.exr"), image);       // rank 0
+//   files.commit();                                      // collective: all final, or none
+#pragma once
+
+#include <mpi.h>
+
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace nimbus {
+
+class OutputFiles {
+public:
+    // Collective over comm (not owned; it must outlive the set): agrees on the run's token.
+    explicit OutputFiles(MPI_Comm comm);
+    // Uncommitted: rank 0 removes every temporary. Not collective; destroy the writers of
+    // the temporaries (Hdf5Writer closes its file collectively) before the set.
+    ~OutputFiles();
+    OutputFiles(const OutputFiles&) = delete;
+    OutputFiles& operator=(const OutputFiles&) = delete;
+
+    // Not collective, but call it on every rank alike: registers final_path and returns the
+    // temporary name to write it under.
+    std::string add(const std::string& final_path);
+    // message with every temporary name replaced by its final name, so that a write error
+    // names the file the user asked for.
+    std::string with_final_names(std::string message) const;
+    // Collective: rank 0 renames every temporary to its final name, in the order added. If a
+    // rename fails it removes the files already renamed and the remaining temporaries, and
+    // every rank throws the same Error.
+    void commit();
+
+private:
+    MPI_Comm comm_;
+    std::string token_;
+    std::vector<std::pair<std::string, std::string>> files_;  // {temporary, final}
+    bool committed_ = false;
+};
+
+}  // namespace nimbus

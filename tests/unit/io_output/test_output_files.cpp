@@ -1,0 +1,211 @@
+// The commit protocol (OutputFiles) and the HDF5 writer's failure paths, at 1 and 2 ranks:
+// temporaries are unique per run and agreed by every rank; nothing is final before commit;
+// a failing rename rolls the whole set back; a write that runs out of space (a file size
+// limit, tests/support/file_size_limit.h, standing in for a full disk) throws the same Error
+// on every rank, leaves no file behind and no HDF5 state that hangs or crashes later (a
+// following write succeeds, and the binary exits cleanly through MPI_Finalize).
+#include <gtest/gtest.h>
+#include <mpi.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "io/output/hdf5_reader.h"
+#include "io/output/hdf5_writer.h"
+#include "io/output/output_files.h"
+#include "sample_fields.h"
+#include "scratch_dir.h"
+#include "src/core/error.h"
+#include "tests/support/expect_collective_error.h"
+#include "tests/support/file_size_limit.h"
+#include "tests/support/mpi_test.h"
+
+namespace nimbus {
+namespace {
+
+namespace fs = std::filesystem;
+using test::expect_collective_error;
+using test::FileSizeLimit;
+using test::ScratchDir;
+
+// The names in a folder, sorted.
+std::vector<std::string> listing(const std::string& dir) {
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+}
+
+TEST(OutputFiles, TemporariesAreUniquePerRunAndAgreedByEveryRank) {
+    ScratchDir dir("outfiles_names");
+    const std::string final_path = dir.file("nimbus.h5");
+    OutputFiles a(MPI_COMM_WORLD), b(MPI_COMM_WORLD);
+    const std::string ta = a.add(final_path), tb = b.add(final_path);
+    EXPECT_NE(ta, tb);
+    EXPECT_NE(ta, final_path + ".tmp");  // the old fixed name, shared by concurrent runs
+    EXPECT_EQ(fs::path(ta).parent_path(),
+              fs::path(final_path).parent_path());  // same folder: rename
+    EXPECT_EQ(ta.rfind(final_path, 0), 0u) << ta;   // recognisable: starts with the final name
+
+    std::string t0 = ta;
+    int len = static_cast<int>(t0.size());
+    MPI_Bcast(&len, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    t0.resize(static_cast<size_t>(len));
+    MPI_Bcast(t0.data(), len, MPI_CHAR, 0, MPI_COMM_WORLD);
+    EXPECT_EQ(t0, ta) << "ranks disagree on the temporary name";
+
+    EXPECT_EQ(a.with_final_names("cannot write '" + ta + "': full"),
+              "cannot write '" + final_path + "': full");
+}
+
+TEST(OutputFiles, CommitMakesEveryFileFinalTogether) {
+    ScratchDir dir("outfiles_commit");
+    OutputFiles files(MPI_COMM_WORLD);
+    const std::string a = files.add(dir.file("a.txt")), b = files.add(dir.file("b.txt"));
+    if (test::world_rank() == 0) {
+        std::ofstream(a) << "a";
+        std::ofstream(b) << "b";
+    }
+    MPI_Barrier(MPI_COMM_WORLD);
+    EXPECT_FALSE(fs::exists(dir.file("a.txt")));
+    files.commit();
+    EXPECT_TRUE(fs::exists(dir.file("a.txt")));
+    EXPECT_TRUE(fs::exists(dir.file("b.txt")));
+    EXPECT_FALSE(fs::exists(a));
+    EXPECT_THROW(files.commit(), Error);
+}
+
+TEST(OutputFiles, UncommittedSetRemovesItsTemporaries) {
+    ScratchDir dir("outfiles_abandon");
+    std::string a;
+    {
+        OutputFiles files(MPI_COMM_WORLD);
+        a = files.add(dir.file("a.txt"));
+        if (test::world_rank() == 0) std::ofstream(a) << "a";
+        MPI_Barrier(MPI_COMM_WORLD);
+    }
+    MPI_Barrier(MPI_COMM_WORLD);
+    if (test::world_rank() == 0) {
+        EXPECT_TRUE(listing(dir.path()).empty());
+    }
+}
+
+TEST(OutputFiles, FailedRenameRollsBackTheWholeSet) {
+    // The last file's final name is a folder: its rename fails after the others succeeded.
+    ScratchDir dir("outfiles_rollback");
+    if (test::world_rank() == 0) fs::create_directory(dir.file("c.txt"));
+    OutputFiles files(MPI_COMM_WORLD);
+    const std::string a = files.add(dir.file("a.txt")), b = files.add(dir.file("b.txt")),
+                      c = files.add(dir.file("c.txt"));
+    if (test::world_rank() == 0)
+        for (const std::string& t : {a, b, c}) std::ofstream(t) << "x";
+    MPI_Barrier(MPI_COMM_WORLD);
+    expect_collective_error([&] { files.commit(); },
+                            "cannot write output file '" + dir.file("c.txt") + "'");
+    if (test::world_rank() == 0) {
+        EXPECT_EQ(listing(dir.path()), std::vector<std::string>{"c.txt"});
+    }
+}
+
+TEST(Hdf5Writer, NothingFinalUntilTheSetCommits) {
+    ScratchDir dir("outfiles_h5");
+    const Grid grid = test::sample_grid();
+    Decomposition d(MPI_COMM_WORLD, grid.n);
+    const std::string path = dir.file("run.h5");
+    OutputFiles files(MPI_COMM_WORLD);
+    {
+        Hdf5Writer w(d, grid, path, files);
+        test::write_sample_fields(w, d);
+        MPI_Barrier(MPI_COMM_WORLD);
+        EXPECT_TRUE(fs::exists(w.temporary_path()));
+        w.close();
+        EXPECT_THROW(w.commit(), Error);  // the set commits, not the writer
+        EXPECT_THROW(w.write_string_attribute("/run", "late", "x"), Error);
+    }
+    MPI_Barrier(MPI_COMM_WORLD);
+    EXPECT_FALSE(fs::exists(path));
+    EXPECT_FALSE(fs::exists(dir.file("run.xdmf")));
+    files.commit();
+    EXPECT_TRUE(fs::exists(dir.file("run.xdmf")));
+    if (test::world_rank() == 0) {
+        EXPECT_EQ(listing(dir.path()), (std::vector<std::string>{"run.h5", "run.xdmf"}));
+        EXPECT_EQ(read_field(path, "fields/density").shape, grid.n);
+    }
+}
+
+TEST(Hdf5Writer, StandaloneWriterUsesUniqueTemporaryUntilCommit) {
+    ScratchDir dir("outfiles_alone");
+    const Grid grid = test::sample_grid();
+    Decomposition d(MPI_COMM_WORLD, grid.n);
+    const std::string path = dir.file("alone.h5");
+    Hdf5Writer w(d, grid, path);
+    test::write_sample_fields(w, d);
+    MPI_Barrier(MPI_COMM_WORLD);
+    EXPECT_TRUE(fs::exists(w.temporary_path()));
+    EXPECT_NE(w.temporary_path(), path + ".tmp");
+    EXPECT_FALSE(fs::exists(path));
+    w.commit();
+    EXPECT_FALSE(fs::exists(w.temporary_path()));
+    EXPECT_TRUE(fs::exists(path));
+    EXPECT_TRUE(fs::exists(dir.file("alone.xdmf")));
+}
+
+// A grid whose fields (64 KiB of float32 each) do not fit under a 96 KiB file size limit.
+Grid big_grid() {
+    Grid g = test::sample_grid();
+    g.n = {32, 32, 16};
+    return g;
+}
+
+TEST(Hdf5Writer, OutOfSpaceInAFieldFailsOnEveryRankAndLeavesNothing) {
+    ScratchDir dir("outfiles_full_field");
+    const Grid grid = big_grid();
+    Decomposition d(MPI_COMM_WORLD, grid.n);
+    const std::string path = dir.file("full.h5");
+    {
+        OutputFiles files(MPI_COMM_WORLD);
+        FileSizeLimit limit(96 * 1024);
+        Hdf5Writer w(d, grid, path, files);
+        expect_collective_error(
+            [&] { w.write_field("density", test::sample_field(d, 1, 0.0), "1", "density"); },
+            "cannot write output file '" + path + "', field 'density': File too large");
+    }
+    MPI_Barrier(MPI_COMM_WORLD);
+    if (test::world_rank() == 0) {
+        EXPECT_TRUE(listing(dir.path()).empty());
+    }
+
+    // HDF5 closed the failed file cleanly: the same path can be written again.
+    Hdf5Writer again(d, grid, path);
+    again.write_field("density", test::sample_field(d, 1, 0.0), "1", "density");
+    again.commit();
+    if (test::world_rank() == 0) {
+        EXPECT_EQ(read_field(path, "fields/density").shape, grid.n);
+    }
+}
+
+TEST(Hdf5Writer, OutOfSpaceInAnAttributeFailsOnEveryRankAndLeavesNothing) {
+    ScratchDir dir("outfiles_full_attr");
+    const Grid grid = test::sample_grid();
+    Decomposition d(MPI_COMM_WORLD, grid.n);
+    const std::string path = dir.file("full.h5");
+    {
+        OutputFiles files(MPI_COMM_WORLD);
+        FileSizeLimit limit(512 * 1024);
+        Hdf5Writer w(d, grid, path, files);
+        test::write_sample_fields(w, d);  // small: fits
+        expect_collective_error(
+            [&] { w.write_string_attribute("/run", "report", std::string(1 << 20, 'x')); },
+            "attribute 'report' of '/run': File too large");
+    }
+    MPI_Barrier(MPI_COMM_WORLD);
+    if (test::world_rank() == 0) {
+        EXPECT_TRUE(listing(dir.path()).empty());
+    }
+}
+
+}  // namespace
+}  // namespace nimbus
