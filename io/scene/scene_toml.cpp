@@ -32,9 +32,9 @@ const std::vector<std::string> kBackgroundKinds = {"color", "ground"};
 const std::vector<std::string> kLightMethods = {"sweep", "exact"};
 const std::vector<std::string> kRenderModes = {"absorption", "emission", "emission_absorption",
                                                "single_unshadowed", "scattering"};
-// Every model name the file format knows; the pipeline rejects the ones not built.
-const std::vector<std::string> kModelNames = {"none", "single", "diffusion", "dom", "lpm",
-                                              "psf", "montecarlo", "auto"};
+// Every model the file format knows (solvers/registry.cpp); a run, and `nimbus info`, reject
+// the ones this build lacks.
+const std::vector<std::string> kModelNames = {"single", "diffusion", "dom", "lpm", "psf", "montecarlo"};
 
 // One line from toml11's multi-line syntax error: "file:line: malformed TOML: what (hint)".
 std::string condense_syntax_error(const toml::exception& e, const std::string& source) {

@@ -39,6 +39,12 @@ PsfSource::PsfSource(const SolveContext& ctx, const PsfOptions& opt)
     : lights_(ctx.light.lights), step_growth_(opt.step_growth) {
     const Medium& m = ctx.medium;
     const Decomposition& d = ctx.decomp;
+    // Checked here, before the light pass on the indicator below, so that its generic "the
+    // light pass needs slabs" does not blame the user's light pass (which may be exact).
+    check_collective(d.comm(), d.is_slab_z(),
+                     fmt::format("model psf needs slabs along z (grid.process_grid = [1, 1, P]): its light "
+                                 "pyramid and path-length pass work on z slabs; got {}",
+                                 d.describe()));
     const int nb = m.nbands(), nl = static_cast<int>(lights_.size());
     diagonal_ = norm(m.grid.extent());
     h_ = m.grid.h;

@@ -48,6 +48,17 @@ FieldError field_error(const std::vector<double>& a, const std::vector<double>& 
     return e;
 }
 
+double max_rel_difference(const std::vector<double>& a, const std::vector<double>& b) {
+    if (a.size() != b.size())
+        throw Error(fmt::format("compare: fields differ in size ({} and {} values)", a.size(), b.size()));
+    double max_diff = 0.0, max_b = 0.0;
+    for (std::size_t c = 0; c < b.size(); ++c) {
+        max_diff = std::max(max_diff, std::abs(a[c] - b[c]));
+        max_b = std::max(max_b, std::abs(b[c]));
+    }
+    return ratio(max_diff, max_b);
+}
+
 ImageError image_error(const std::vector<float>& a, const std::vector<float>& b) {
     if (a.size() != b.size() || a.size() % 4 != 0)
         throw Error(fmt::format("compare: images differ in size ({} and {} values)", a.size(), b.size()));

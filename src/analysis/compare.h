@@ -7,6 +7,7 @@
 //                                                       error s_b > 0 (Monte Carlo): ≈ 1 when a
 //                                                       agrees with b within b's noise
 //   image RMSE        sqrt(mean over pixels and RGB of (a - b)²), relative: ||a - b|| / ||b||
+//   same medium       max |rho_a - rho_b| / max |rho_b| over all cells <= kSameMediumTolerance
 #pragma once
 
 #include <cstddef>
@@ -27,6 +28,14 @@ struct FieldError {
 // when a = b there too and +inf otherwise.
 FieldError field_error(const std::vector<double>& a, const std::vector<double>& b,
                        const std::vector<double>& density, const std::vector<double>* stderr_b);
+
+// max |a - b| / max |b| over all cells: 0 when a = b, +inf when b is all zero and a is not.
+// Throws Error if the sizes differ.
+double max_rel_difference(const std::vector<double>& a, const std::vector<double>& b);
+
+// Two runs whose densities differ by more than this (relative, max_rel_difference) were runs of
+// different media: beyond the round-off of the float32 output, which is the same for both.
+inline constexpr double kSameMediumTolerance = 1e-6;
 
 struct ImageError {
     double rmse = 0.0;

@@ -2,11 +2,13 @@
 // against the reference run B (src/analysis/compare.h): per band, relative L2 and max relative
 // error of fields/fluence_diffuse/<band> over cells with density > 0, and the RMS of
 // (a - b) / stderr when B has fields/fluence_diffuse_stderr/<band> (a Monte Carlo reference);
-// image RMSE and relative error when both images are given. Rank 0 reads and prints; an error
-// is reported on every rank.
+// image RMSE and relative error when both images are given. Warns (and flags in --json) when
+// the density fields of A and B differ: runs of different media. Rank 0 reads and prints; an
+// error is reported on every rank.
 #include <fmt/format.h>
 #include <mpi.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -16,9 +18,13 @@
 #include "src/analysis/compare.h"
 #include "src/cmd/commands.h"
 #include "src/core/error.h"
+#include "src/core/log.h"
 
 namespace nimbus::cmd {
 namespace {
+
+// The per-band scalar fields compare can assess (flux_diffuse is a vector field).
+const std::vector<std::string> kFields = {"fluence_diffuse", "fluence_reduced", "transmittance_sun"};
 
 struct CompareArgs {
     std::string a, b, image_a, image_b;
@@ -32,10 +38,20 @@ nlohmann::json compare_runs(const CompareArgs& args) {
     if (bands.empty()) throw Error(fmt::format("'{}' has no {} datasets", args.b, field));
     const FieldData density = read_field(args.b, "fields/density");
     nlohmann::json out = {{"a", args.a}, {"b", args.b}, {"field", args.field}, {"bands", nlohmann::json::array()}};
+    // Comparing runs of different media is almost always a mistake: say so, but go on.
+    const FieldData density_a = read_field(args.a, "fields/density");
+    if (density_a.shape != density.shape)
+        throw Error(fmt::format("fields/density: grids differ ({}x{}x{} against {}x{}x{})", density_a.shape[0],
+                                density_a.shape[1], density_a.shape[2], density.shape[0], density.shape[1],
+                                density.shape[2]));
+    const double density_diff = max_rel_difference(density_a.values, density.values);
+    out["density_max_rel_diff"] = density_diff;
+    out["same_medium"] = density_diff <= kSameMediumTolerance;
     for (const std::string& band : bands) {
         const std::string path = field + "/" + band;
         if (!has_dataset(args.a, path)) throw Error(fmt::format("'{}' has no {} (the reference has)", args.a, path));
         const FieldData fa = read_field(args.a, path), fb = read_field(args.b, path);
+        if (fa.ncomp != 1 || fb.ncomp != 1) throw Error(fmt::format("{}: not a scalar field", path));
         if (fa.shape != fb.shape)
             throw Error(fmt::format("{}: grids differ ({}x{}x{} against {}x{}x{})", path, fa.shape[0], fa.shape[1],
                                     fa.shape[2], fb.shape[0], fb.shape[1], fb.shape[2]));
@@ -80,11 +96,18 @@ void print_table(const nlohmann::json& r) {
 void add_compare_command(CLI::App& app) {
     auto args = std::make_shared<CompareArgs>();
     CLI::App* cmd = app.add_subcommand("compare", "error of run A against reference run B (HDF5 outputs)");
-    cmd->add_option("a", args->a, "the run to assess (nimbus.h5)")->required()->check(CLI::ExistingFile);
-    cmd->add_option("b", args->b, "the reference run (nimbus.h5), e.g. Monte Carlo")->required()->check(CLI::ExistingFile);
+    cmd->add_option("A", args->a, "the run to assess (nimbus.h5)")->required()->check(CLI::ExistingFile);
+    cmd->add_option("B", args->b, "the reference run (nimbus.h5), e.g. Monte Carlo")->required()->check(CLI::ExistingFile);
     cmd->add_flag("--json", args->json, "print JSON instead of a table");
-    cmd->add_option("--field", args->field, "per-band field to compare (fluence_diffuse, fluence_reduced, "
-                                             "transmittance_sun)")->capture_default_str();
+    cmd->add_option("--field", args->field, "per-band field to compare: fluence_diffuse | fluence_reduced | "
+                                             "transmittance_sun")
+        ->capture_default_str()
+        ->check([](const std::string& f) {
+            return std::find(kFields.begin(), kFields.end(), f) != kFields.end()
+                       ? std::string()
+                       : fmt::format("unsupported field '{}'; choose fluence_diffuse | fluence_reduced | "
+                                     "transmittance_sun", f);
+        });
     cmd->add_option("--image-a", args->image_a, "image of run A (EXR)")->check(CLI::ExistingFile);
     cmd->add_option("--image-b", args->image_b, "image of the reference (EXR)")->check(CLI::ExistingFile);
     cmd->callback([args] {
@@ -95,6 +118,10 @@ void add_compare_command(CLI::App& app) {
             if (rank == 0) result = compare_runs(*args);
         });
         if (rank != 0) return;
+        if (!result["same_medium"].get<bool>())
+            log::warn("the density fields of {} and {} differ (max relative difference {:.3g}): these are runs of "
+                      "different media, and the errors compare different problems",
+                      args->a, args->b, result["density_max_rel_diff"].get<double>());
         if (args->json) std::printf("%s\n", result.dump(2).c_str()); else print_table(result);
     });
 }

@@ -1,14 +1,20 @@
 // `nimbus info SCENE`: what a run of this scene would face: grid, optical depths, memory per
-// rank, which models suit it. Cheap: builds the density and sums columns, solves nothing.
+// rank, which models suit it. Cheap: builds the density and sums columns, solves nothing. It
+// makes the checks a run makes before computing (the scene, the model is in this build), and
+// estimates the memory before it allocates anything: a grid that would not fit is reported as
+// such, without building its density.
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cmath>
+#include <new>
 
 #include "io/scene/density_import.h"
 #include "solvers/registry.h"
 #include "src/cmd/commands.h"
+#include "src/cmd/memory.h"
+#include "src/core/error.h"
 #include "src/core/log.h"
 #include "src/physics/lights.h"
 #include "src/pipeline/pipeline.h"
@@ -17,16 +23,40 @@
 namespace nimbus::cmd {
 namespace {
 
-struct ColumnStats {
-    double tau_max = 0, tau_mean = 0, cell_tau_max = 0, filled = 0;
-    Box bbox{{1 << 30, 1 << 30, 1 << 30}, {-1, -1, -1}};
-};
-
 void info(const RunOptions& opts) {
     MPI_Comm comm = MPI_COMM_WORLD;
     const Scene s = load_run_scene(comm, opts);
+    run_collective(comm, [&] { make_model(s.model); });  // as a run: is the model in this build?
     const Decomposition d(comm, s.grid.n, s.grid.process_grid, s.grid.periodic);
-    Field<double> rho(d.local(), 1, 1, 0.0);
+    const auto lights = make_lights(s);
+    const MemoryEstimate mem = estimate_memory(s, d);
+    const auto log_grid = [&] {
+        log::info("scene: {} ({})", s.title, s.source);
+        log::info("grid: {} x {} x {} = {} cells, cell {} m, domain {:.4g} x {:.4g} x {:.4g} m", s.grid.n[0],
+                  s.grid.n[1], s.grid.n[2], d.global().cells(), s.grid.h(), s.grid.n[0] * s.grid.h(),
+                  s.grid.n[1] * s.grid.h(), s.grid.n[2] * s.grid.h());
+        log::info("decomposition: {}; largest rank box {} cells", d.describe(), d.local().cells());
+    };
+    const auto log_memory = [&] {
+        log::info("memory estimate per rank ({}): {:.1f} MiB", mem.what, mem.bytes / (1 << 20));
+    };
+    try {
+        check_memory_fits(comm, mem);
+    } catch (const Error&) {
+        log_grid();
+        log_memory();
+        throw;
+    }
+    Field<double> rho;
+    run_collective(comm, [&] {
+        try {
+            rho = Field<double>(d.local(), 1, 1, 0.0);
+        } catch (const std::bad_alloc&) {
+            throw Error(fmt::format("not enough memory for the density ({:.1f} GiB per rank); use more ranks "
+                                    "(on more nodes) or a smaller grid",
+                                    static_cast<double>(d.local().grown(1).cells()) * 8 / (1 << 30)));
+        }
+    });
     if (s.medium.kind == MediumSpec::Kind::hdf5 || s.medium.kind == MediumSpec::Kind::raw)
         read_density(s.medium, d, rho);
     else
@@ -61,31 +91,12 @@ void info(const RunOptions& opts) {
     double cmax = 0, csum = 0, ccount = 0;
     for (double c : colsum) { cmax = std::max(cmax, c); if (c > 0) { csum += c; ccount += 1; } }
 
-    const auto lights = make_lights(s);
-    const double local_cells = static_cast<double>(own.grown(1).cells());
-    // Fields every run holds: rho, tau_rho per light, fluence per band (+ output copies), the
-    // renderer's float view volume (16 bytes/cell) and the image fragments.
-    const double fields = 1 + static_cast<double>(lights.size()) + 2.0 * s.nbands() + 2.0;
-    double bytes = local_cells * 8 * fields + 40.0 * s.camera.width * s.camera.height;
-    std::string what = "light pass, render";
-    if (s.model.name == "montecarlo") {
-        // The density is replicated on every rank with per-band sum/sum² tallies (batch means).
-        bytes += static_cast<double>(d.global().cells()) * (24.0 + 28.0 * s.nbands());
-        what += ", Monte Carlo (replicated grid)";
-    } else if (s.model.name == "diffusion") {
-        // hypre: 7-point matrix + ~6 vectors, x ~1.4 for the multigrid hierarchy; flux per band.
-        bytes += local_cells * 8 * (13 * 1.4 + 3.0 * s.nbands());
-        what += ", diffusion (hypre)";
-    }
-
-    log::info("scene: {} ({})", s.title, s.source);
-    log::info("grid: {} x {} x {} = {} cells, cell {} m, domain {:.4g} x {:.4g} x {:.4g} m", s.grid.n[0],
-              s.grid.n[1], s.grid.n[2], d.global().cells(), s.grid.h(), s.grid.n[0] * s.grid.h(),
-              s.grid.n[1] * s.grid.h(), s.grid.n[2] * s.grid.h());
-    log::info("decomposition: {}; largest rank box {} cells", d.describe(), own.cells());
-    log::info("medium: {}; {:.1f}% of cells non-empty; bounding box of non-empty cells [{}, {}) x [{}, {}) x [{}, {})",
-              to_string(s.medium.kind), 100.0 * filled / d.global().cells(), bb.lo[0], bb.hi[0], bb.lo[1],
-              bb.hi[1], bb.lo[2], bb.hi[2]);
+    log_grid();
+    log::info("medium: {}; {:.1f}% of cells non-empty; {}", to_string(s.medium.kind),
+              100.0 * filled / static_cast<double>(d.global().cells()),
+              filled > 0 ? fmt::format("bounding box of non-empty cells [{}, {}) x [{}, {}) x [{}, {})", bb.lo[0],
+                                       bb.hi[0], bb.lo[1], bb.hi[1], bb.lo[2], bb.hi[2])
+                         : std::string("no non-empty cells"));
     for (const auto& b : s.bands) {
         log::info("band '{}': sigma_t {} /m, albedo {}, g {}; vertical optical depth max {:.3g}, mean over "
                   "cloudy columns {:.3g}; max cell optical depth kappa*h {:.3g}; transport depth (1 - a g) "
@@ -96,7 +107,7 @@ void info(const RunOptions& opts) {
     }
     log::info("light terms: {} (sun {}, sky bins {})", lights.size(), s.sun.enabled ? "on" : "off",
               s.sky.radiance.empty() ? 0 : s.sky.directions);
-    log::info("memory estimate per rank ({}): {:.1f} MiB", what, bytes / (1 << 20));
+    log_memory();
     const double tau = s.bands.empty() ? 0 : s.bands[0].sigma_t * cmax * (1 - s.bands[0].albedo * s.bands[0].g);
     std::string advice = tau < 0.3 ? "optically thin: 'single' is close to exact"
                        : tau < 3   ? "intermediate: multiple scattering matters; 'montecarlo' is the reference"
@@ -116,7 +127,8 @@ void add_info_command(CLI::App& app) {
     auto opts = std::make_shared<RunOptions>();
     auto* cmd = app.add_subcommand("info", "Describe a scene: grid, optical depths, memory per rank, suitable models.");
     cmd->add_option("scene", opts->scene_path, "scene file (TOML); default: the built-in cloud")->check(CLI::ExistingFile);
-    cmd->add_option("--set", opts->overrides, "override a scene key (repeatable)");
+    cmd->add_option("--set", opts->overrides, "override a scene key, e.g. --set grid.n=[32,32,32] (repeatable)")
+        ->allow_extra_args(false);
     cmd->callback([opts] { info(*opts); });
 }
 

@@ -2,19 +2,51 @@
 //   mpiexec -n 2 nimbus run [SCENE] [--set key=value ...] [--out DIR]
 //   nimbus info SCENE
 //   nimbus compare A.h5 B.h5 [--json]
+// Exit status: 0 on success (and for --help, --version), 1 on a usage error or bad input (one
+// "nimbus: error:" line from rank 0), 2 when a rank fails on its own (internal error).
 #include <CLI/CLI.hpp>
 #include <mpi.h>
 
 #include <cstdio>
+#include <new>
+#include <string>
 
 #include "src/cmd/commands.h"
 #include "src/core/error.h"
 #include "src/core/log.h"
 
+namespace {
+
+// One line for a CLI11 parse error: what is wrong, naming the argument, and where help is.
+std::string usage_message(const CLI::App& app, const CLI::ParseError& e) {
+    const auto subs = app.get_subcommands();
+    std::string what = e.what();
+    const bool global_option = what.rfind("--log-", 0) == 0;  // --log-level, --log-all-ranks
+    const std::string help = subs.empty() || global_option ? "nimbus --help"
+                                                            : "nimbus " + subs.front()->get_name() + " --help";
+    if (subs.empty() && e.get_name() == "RequiredError") {
+        // No subcommand matched: name what was typed instead of "A subcommand is required".
+        std::string typed;
+        for (const std::string& a : app.remaining())
+            if (a.empty() || a[0] != '-') {
+                typed = a;
+                break;
+            }
+        what = typed.empty() ? "a command is required: run, info or compare"
+                             : "unknown command '" + typed + "'; commands: run, info, compare";
+    }
+    for (char& c : what)
+        if (c == '\n') c = ' ';
+    return what + " (see " + help + ")";
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
     MPI_Init(&argc, &argv);
-    int rank = 0;
+    int rank = 0, size = 1;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
 
     CLI::App app{"nimbus: light transport in clouds, smoke and fog on MPI ranks.\n"
                  "Run with mpiexec -n N nimbus ... ; rank 0 speaks."};
@@ -26,6 +58,9 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     app.add_flag("--log-all-ranks", all_ranks, "let every rank log, prefixed with its rank");
     app.require_subcommand(1);
+    // The global options may also follow the subcommand (`nimbus run --log-level debug`): the
+    // subcommands, which inherit this setting, pass the options they do not know to the app.
+    app.fallthrough();
     nimbus::cmd::add_run_command(app);
     nimbus::cmd::add_info_command(app);
     nimbus::cmd::add_compare_command(app);
@@ -36,11 +71,24 @@ int main(int argc, char** argv) {
         try {
             app.parse(argc, argv);
         } catch (const CLI::ParseError& e) {
-            if (rank == 0) code = app.exit(e); else code = e.get_exit_code();
+            if (e.get_exit_code() == static_cast<int>(CLI::ExitCodes::Success)) {
+                if (rank == 0) app.exit(e);  // --help, --version
+            } else {
+                if (rank == 0) std::fprintf(stderr, "nimbus: error: %s\n", usage_message(app, e).c_str());
+                code = 1;
+            }
         }
     } catch (const nimbus::Error& e) {
         // Collective errors: every rank has the same message; rank 0 says it once.
         if (rank == 0) std::fprintf(stderr, "nimbus: error: %s\n", e.what());
+        code = 1;
+    } catch (const std::bad_alloc&) {
+        // Not collective: the other ranks may be waiting for this one, hence the abort.
+        std::fprintf(stderr,
+                     "nimbus: error: not enough memory on rank %d; use more ranks (on more nodes) or a smaller "
+                     "grid; `nimbus info` estimates the memory per rank\n",
+                     rank);
+        if (size > 1) MPI_Abort(MPI_COMM_WORLD, 1);
         code = 1;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "nimbus: internal error on rank %d: %s\n", rank, e.what());

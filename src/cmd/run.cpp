@@ -1,7 +1,9 @@
-// `nimbus run`: one run of the pipeline, with the run report printed at the end.
+// `nimbus run`: one run of the pipeline, with the run report printed at the end. A grid that
+// would not fit in memory is refused before anything is allocated (src/cmd/memory.h).
 #include <fmt/format.h>
 
 #include "src/cmd/commands.h"
+#include "src/cmd/memory.h"
 #include "src/core/log.h"
 #include "src/pipeline/pipeline.h"
 
@@ -36,7 +38,13 @@ void add_run_command(CLI::App& app) {
                                               "--set model.name=montecarlo (repeatable)")
         ->allow_extra_args(false);
     run->add_option("--out", opts->out_dir, "output folder (default: the scene's output.dir)");
-    run->callback([opts] { print_report(run_pipeline(MPI_COMM_WORLD, *opts)); });
+    run->callback([opts] {
+        MPI_Comm comm = MPI_COMM_WORLD;
+        const Scene scene = load_run_scene(comm, *opts);
+        check_memory_fits(comm, estimate_memory(scene, Decomposition(comm, scene.grid.n, scene.grid.process_grid,
+                                                                     scene.grid.periodic)));
+        print_report(run_pipeline(comm, scene));
+    });
 }
 
 }  // namespace nimbus::cmd

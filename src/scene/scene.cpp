@@ -2,9 +2,12 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include "src/core/error.h"
+#include "src/render/ray_box.h"
 #include "src/scene/emission.h"
 
 namespace nimbus {
@@ -48,7 +51,54 @@ void validate_sources(const Scene& scene) {
                             scene.model.name));
 }
 
+// Band names name the HDF5 datasets fields/<field>/<name> (and the XDMF attributes): they must
+// be non-empty, unique, free of '/' and control characters, and not "." or "..".
+void validate_band_names(const std::vector<BandOptics>& bands) {
+    for (size_t b = 0; b < bands.size(); ++b) {
+        const std::string& name = bands[b].name;
+        const std::string key = fmt::format("optics[{}].name", b);
+        require(!name.empty(), key + " must not be empty: a band name names its datasets in the HDF5 output");
+        require(std::none_of(name.begin(), name.end(), [](char c) { return (c >= 0 && c < 0x20) || c == 0x7f; }),
+                key + " contains a control character: band names name their datasets in the HDF5 output");
+        require(name.find('/') == std::string::npos && name != "." && name != "..",
+                fmt::format("{} = \"{}\" is not a valid band name: no '/', and not \".\" or \"..\" (it names the "
+                            "HDF5 datasets fields/<field>/<name>)",
+                            key, name));
+        for (size_t c = 0; c < b; ++c)
+            require(bands[c].name != name,
+                    fmt::format("{} = \"{}\" repeats optics[{}].name: band names must be unique (each names the "
+                                "HDF5 datasets fields/<field>/<name>)",
+                                key, name, c));
+    }
+}
+
 }  // namespace
+
+// The pinhole model of src/render/camera.h, restated on the spec (tests/unit/render/camera_test.cpp
+// checks the two agree).
+bool camera_sees_domain(const CameraSpec& c, const GridSpec& g) {
+    const double h = g.h();
+    const Vec3 extent{g.n[0] * h, g.n[1] * h, g.n[2] * h};
+    const auto world = [&](const Vec3& v) {
+        return c.domain_units ? Vec3{v.x * extent.x, v.y * extent.y, v.z * extent.z} : v;
+    };
+    const Vec3 position = world(c.position), view = world(c.look_at) - position;
+    if (!(norm(view) > 0)) return true;
+    const Vec3 forward = normalized(view), side = cross(forward, c.up);
+    if (!(norm(side) > 1e-9 * norm(c.up))) return true;
+    const Vec3 right = normalized(side), up = cross(right, forward);
+    const double half_h = std::tan(0.5 * c.fov_deg * std::numbers::pi / 180.0);
+    const double half_w = half_h * static_cast<double>(c.width) / c.height;
+    for (int a = 0; a <= 32; ++a)
+        for (int b = 0; b <= 32; ++b) {
+            const double sx = (2.0 * a / 32.0 - 1.0) * half_w, sy = (1.0 - 2.0 * b / 32.0) * half_h;
+            double t0, t1;
+            if (intersect_box(position, normalized(forward + right * sx + up * sy), Vec3{0, 0, 0}, extent, t0, t1) &&
+                t1 > 0)
+                return true;
+        }
+    return false;
+}
 
 void Scene::validate() const {
     for (int d = 0; d < 3; ++d)
@@ -56,6 +106,7 @@ void Scene::validate() const {
     require(std::isfinite(grid.h()) && grid.h() > 0,
             fmt::format("grid.cell_size = {} must be > 0", grid.cell_size));
     require(!bands.empty(), "optics: at least one band is required");
+    validate_band_names(bands);
     for (size_t b = 0; b < bands.size(); ++b) {
         const auto& o = bands[b];
         require(std::isfinite(o.sigma_t) && o.sigma_t >= 0,
@@ -83,6 +134,14 @@ void Scene::validate() const {
     require(norm(view) > 0, "camera.look_at equals camera.position: the camera looks at nothing");
     require(norm(cross(view, camera.up)) > 1e-9 * norm(view) * norm(camera.up),
             "camera.up is parallel to the view direction");
+    if (output.image) {
+        const double h = grid.h();
+        require(camera_sees_domain(camera, grid),
+                fmt::format("camera.look_at: the camera looks at nothing: the domain [0, {:.4g}] x [0, {:.4g}] x "
+                            "[0, {:.4g}] m is outside its field of view (check camera.position, look_at, fov and "
+                            "units)",
+                            grid.n[0] * h, grid.n[1] * h, grid.n[2] * h));
+    }
     require_bands(background.color, nbands(), "background.color");
     require(background.ground_albedo >= 0 && background.ground_albedo <= 1,
             "background.ground_albedo must be in [0, 1]");

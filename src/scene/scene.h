@@ -133,7 +133,7 @@ struct RenderSpec {
 };
 
 struct ModelSpec {
-    std::string name = "single";  // single | montecarlo | diffusion (more as models land)
+    std::string name = "single";  // single | diffusion | dom | lpm | psf | montecarlo
     MonteCarloOptions montecarlo;  // [model.montecarlo]
     DiffusionOptions diffusion;    // [model.diffusion]
     DomOptions dom;                // [model.dom]
@@ -169,6 +169,12 @@ struct Scene {
     // [0, 1]"). io/scene_toml adds file and line; this check needs no text.
     void validate() const;
 };
+
+// Whether any ray of a 33 x 33 fan over the image (corners and edges included) meets the
+// domain box [0, n h]: false means the image would show only background, almost always a
+// mistake in camera.position/look_at/units. A degenerate view (look_at == position, up
+// parallel to it) counts as seeing: validate() reports those on their own. Pure, no MPI.
+bool camera_sees_domain(const CameraSpec& camera, const GridSpec& grid);
 
 const char* to_string(RenderMode m);
 const char* to_string(MediumSpec::Kind k);

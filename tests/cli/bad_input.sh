@@ -1,16 +1,18 @@
 #!/usr/bin/env bash
 # Each bad input must: exit non-zero (mpiexec reports the worst rank), print exactly one
 # "nimbus: error:" line naming the problem, and finish well before the timeout (no hang).
+# `nimbus info` must refuse what a run refuses before computing, with the same message.
 set -u
 nimbus=$1 mpiexec=$2 np=$3 scenes=$4
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 pass=0 fail=0
 
-expect_error() {  # expect_error "<grep pattern>" args...
+expect_error() {  # expect_error "<grep pattern>" args...   (SUB=info: nimbus info, without --out)
   local pattern=$1; shift
-  local out
-  out=$(timeout 120 "$mpiexec" -n "$np" "$nimbus" run "$@" --out "$tmp/out" 2>&1)
+  local out sub=${SUB:-run}
+  if [ "$sub" = run ]; then set -- "$@" --out "$tmp/out"; fi
+  out=$(timeout 120 "$mpiexec" -n "$np" "$nimbus" "$sub" "$@" 2>&1)
   local code=$?
   local lines
   lines=$(echo "$out" | grep -c "nimbus: error:")
@@ -18,7 +20,7 @@ expect_error() {  # expect_error "<grep pattern>" args...
     pass=$((pass + 1))
   else
     fail=$((fail + 1))
-    echo "FAIL (exit $code, $lines error lines, want /$pattern/): nimbus run $*"
+    echo "FAIL (exit $code, $lines error lines, want /$pattern/): nimbus $sub $*"
     echo "$out" | tail -5
   fi
 }
@@ -56,11 +58,26 @@ expect_error "NaN\|nan" "$tmp/nan.toml"
 expect_error "-1" "$tmp/neg.toml"
 expect_error "model" "${small[@]}" --set "model.name=\"nonsense\""
 expect_error "looks at nothing" "${small[@]}" --set "camera.look_at=[0.5,-3.0,0.42]"
+# Band names name the HDF5 datasets: refused at load time, not after the solve.
+expect_error 'optics\[1\].name = "r" repeats optics\[0\].name' "${small[@]}" --set 'optics[1].name="r"'
+expect_error 'optics\[0\].name = "a/b" is not a valid band name' "${small[@]}" --set 'optics[0].name="a/b"'
+expect_error 'model.name = "auto" is not allowed' "${small[@]}" --set 'model.name="auto"'
+# A grid far beyond any machine: refused before anything is allocated, on every rank.
+expect_error "the grid does not fit in memory" --set "grid.n=[65536,65536,65536]"
+SUB=info
+expect_error "camera.look_at: the camera looks at nothing" "${small[@]}" --set "camera.look_at=[0.5,-3.0,0.42]"
+expect_error 'optics\[1\].name = "r" repeats' "${small[@]}" --set 'optics[1].name="r"'
+expect_error "the grid does not fit in memory" --set "grid.n=[65536,65536,65536]"
+unset SUB
 # Unwritable output folder: a path below a regular file.
 out=$(timeout 120 "$mpiexec" -n "$np" "$nimbus" run "${small[@]}" --out /proc/version/x 2>&1); code=$?
 if [ $code -ne 0 ] && [ $code -ne 124 ] && echo "$out" | grep -q "nimbus: error:.*not writable"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: unwritable output folder (exit $code)"; echo "$out" | tail -3; fi
 # More ranks than z cells.
 if [ "$np" -gt 1 ]; then expect_error "no cells" --set "grid.n=[8,8,1]"; fi
+# psf's own pass needs slabs along z; the message names psf, not the (exact) light pass.
+if [ "$np" -gt 1 ] && "$nimbus" info --set "grid.n=[8,8,8]" 2>&1 | grep -q "models in this build:.*psf"; then
+  expect_error "model psf needs slabs along z" "${small[@]}" --set 'model.name="psf"' --set "grid.process_grid=[2,1,1]"
+fi
 
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]

@@ -111,6 +111,43 @@ TEST(SceneErrors, CameraLookingAtNothing) {
                  {"camera.look_at equals camera.position"});
 }
 
+// A camera whose view misses the domain is refused when the scene is loaded (run and info
+// alike), at the camera's keys; without an image there is nothing to see and no error.
+TEST(SceneErrors, CameraSeeingNoDomain) {
+    const std::string away = edit("look_at = [0.5, 0.5, 0.5]", "look_at = [0.5, -3.0, 0.5]");
+    expect_error(away, "look_at", {"camera.look_at: the camera looks at nothing", "outside its field of view"});
+    EXPECT_NO_THROW(load_scene_string(away + "[output]\nimage = false\n", "ok.toml"));
+    try {
+        load_scene_string(kBase, "bad.toml", {"camera.look_at=[0.5,-3,0.5]"});
+        ADD_FAILURE() << "no error for a camera looking away";
+    } catch (const Error& e) {
+        EXPECT_EQ(std::string(e.what()).rfind("bad.toml: --set camera.look_at=[0.5,-3,0.5]: camera.look_at: "
+                                              "the camera looks at nothing", 0), 0u) << e.what();
+    }
+}
+
+// Band names name the HDF5 datasets fields/<field>/<name>: refused at load time, not after the
+// solve when the output is written.
+TEST(SceneErrors, BandNames) {
+    const std::string two = kBase + "[[optics]]\nname = \"gray\"\nsigma_t = 2.0\n";
+    expect_error(two, "name = \"gray\"\nsigma_t = 2.0", {"optics[1].name = \"gray\" repeats optics[0].name",
+                                                         "must be unique"});
+    expect_error(edit("name = \"gray\"", "name = \"\""), "name = \"\"", {"optics[0].name must not be empty"});
+    expect_error(edit("name = \"gray\"", "name = \"r/g\""), "r/g", {"optics[0].name = \"r/g\" is not a valid band name", "'/'"});
+    expect_error(edit("name = \"gray\"", "name = \".\""), "name = \".\"", {"optics[0].name = \".\" is not a valid"});
+    expect_error(edit("name = \"gray\"", "name = \"..\""), "name = \"..\"", {"optics[0].name = \"..\" is not a valid"});
+    expect_error(edit("name = \"gray\"", "name = \"a\\tb\""), "name = \"a", {"optics[0].name contains a control character"});
+    // Overrides are located at what the user typed.
+    try {
+        load_scene_string(two, "bad.toml", {"optics[1].name=\"gray\""});
+        ADD_FAILURE();
+    } catch (const Error& e) {
+        EXPECT_EQ(std::string(e.what()).rfind("bad.toml: --set optics[1].name=\"gray\": optics[1].name = ", 0), 0u)
+            << e.what();
+    }
+    EXPECT_NO_THROW(load_scene_string(kBase + "[[optics]]\nname = \"0.55 um (green)\"\n", "ok.toml"));
+}
+
 TEST(SceneErrors, NegativeDensityScale) {
     expect_error(edit("density = 1.0", "density = -2.0"), "density = -2.0", {"medium.density = -2", ">= 0"});
 }
@@ -161,6 +198,13 @@ TEST(SceneErrors, OtherRanges) {
     expect_error(edit("", "[camera.x]"), "[camera.x]", {"camera.x: unknown key"});
     expect_error(edit("name = \"single\"", "name = \"magic\""), "magic",
                  {"model.name = \"magic\" is not allowed", "montecarlo", "diffusion"});
+    // 'none' and 'auto' are not models: refused at load time, and not offered as choices.
+    for (const char* name : {"none", "auto"}) {
+        const std::string text = edit("name = \"single\"", std::string("name = \"") + name + "\"");
+        expect_error(text, std::string("name = \"") + name,
+                     {std::string("model.name = \"") + name + "\" is not allowed",
+                      "allowed: single, diffusion, dom, lpm, psf, montecarlo"});
+    }
     expect_error(edit("", "[sky]\nradiance = [1, 2]"), "radiance = [1, 2]",
                  {"sky.radiance has 2 values but the scene has 1 band(s)"});
 }

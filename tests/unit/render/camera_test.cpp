@@ -1,13 +1,17 @@
 // Camera: the central pixel looks at look_at, up in the world is up in the image (row 0 is
 // the top), right is right, the vertical field of view spans the image height, and domain
-// units map through the grid's origin and extent; project() inverts direction().
+// units map through the grid's origin and extent; project() inverts direction(). The scene's
+// check that a camera sees the domain (camera_sees_domain, src/scene) agrees with this camera.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <numbers>
+#include <random>
 
 #include "src/core/error.h"
 #include "src/render/camera.h"
+#include "src/render/ray_box.h"
+#include "src/scene/medium.h"
 
 namespace nimbus {
 namespace {
@@ -101,6 +105,45 @@ TEST(Camera, DegenerateViewsThrow) {
     CameraSpec parallel = oblique_spec();
     parallel.look_at = {0.9, -0.8, 0.1};  // straight down, up = +z
     EXPECT_THROW(Camera(parallel, test_grid()), Error);
+}
+
+// The scene-side check restates the pinhole model on the spec; on random views around and inside
+// the domain it must give the answer of this camera's own fan of rays (the pipeline's check).
+TEST(Camera, SceneCheckThatTheCameraSeesTheDomainAgrees) {
+    GridSpec gs;
+    gs.n = {20, 10, 40};
+    gs.cell_size = 0.5;
+    const Grid grid = make_grid(gs);
+    std::mt19937 rng(12345);
+    std::uniform_real_distribution<double> pos(-2.0, 3.0), dir(-1.0, 1.0), fov(5.0, 120.0);
+    std::uniform_int_distribution<int> side(4, 800);
+    int seen = 0, unseen = 0;
+    for (int trial = 0; trial < 400; ++trial) {
+        CameraSpec c;
+        c.position = {pos(rng), pos(rng), pos(rng)};
+        c.look_at = c.position + Vec3{dir(rng), dir(rng), dir(rng)};
+        c.up = {dir(rng), dir(rng), 1.0};
+        c.fov_deg = fov(rng);
+        c.width = side(rng);
+        c.height = side(rng);
+        c.domain_units = trial % 2 == 0;
+        if (!c.domain_units) {  // the same views in metres
+            c.position = Vec3{c.position.x * 10, c.position.y * 5, c.position.z * 20};
+            c.look_at = Vec3{c.look_at.x * 10, c.look_at.y * 5, c.look_at.z * 20};
+        }
+        const Camera cam(c, grid);
+        bool hit = false;
+        for (int a = 0; a <= 32 && !hit; ++a)
+            for (int b = 0; b <= 32 && !hit; ++b) {
+                double t0, t1;
+                hit = intersect_box(cam.position(), cam.direction(a * cam.width() / 32.0, b * cam.height() / 32.0),
+                                    grid.origin, grid.upper(), t0, t1) && t1 > 0;
+            }
+        EXPECT_EQ(camera_sees_domain(c, gs), hit) << "trial " << trial;
+        (hit ? seen : unseen) += 1;
+    }
+    EXPECT_GT(seen, 40);  // both answers are exercised
+    EXPECT_GT(unseen, 40);
 }
 
 }  // namespace

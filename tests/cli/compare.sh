@@ -1,0 +1,148 @@
+#!/usr/bin/env bash
+# `nimbus compare` end to end, on small runs of the default cloud (16 x 16 x 12 cells, 2e4
+# photons, a 32 x 20 image; well under a second each): the table; the JSON against the metrics
+# recomputed from the HDF5 files (numpy); known answers: a run against itself gives 0, and
+# against the same photons with every light and the background doubled 0.5 (1 the other way
+# round) for the field and the image; --field and a reference without a standard error (no
+# RMS z); clear errors. At np ranks: rank 0 prints once, an error exits non-zero.
+set -u
+nimbus=$1 mpiexec=$2 np=$3
+py=/usr/bin/python3
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+pass=0 fail=0
+nim() { timeout 120 "$mpiexec" -n "$np" "$nimbus" "$@"; }
+check() {  # check "<what>" <command...>: passes when the command succeeds
+  local what=$1; shift
+  if "$@"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: $what"; fi
+}
+
+# The lights and background are set explicitly so that the doubled run is exactly 2x (doubling
+# is exact in floating point, and the photons are the same: same seed, same power ratios).
+small=(--set "grid.n=[16,16,12]" --set "camera.resolution=[32,20]" --set model.montecarlo.photons=20000)
+one=(--set "sun.irradiance=[1.0,0.9,0.8]" --set "sky.radiance=[0.03,0.05,0.09]" --set "background.color=[0.1,0.2,0.3]")
+two=(--set "sun.irradiance=[2.0,1.8,1.6]" --set "sky.radiance=[0.06,0.1,0.18]" --set "background.color=[0.2,0.4,0.6]")
+run() {  # run <name> args...
+  local name=$1; shift
+  nim run "$@" --out "$tmp/$name" > "$tmp/$name.log" 2>&1 || { echo "FAIL: nimbus run $name"; tail -5 "$tmp/$name.log"; exit 1; }
+}
+run a "${small[@]}" "${one[@]}" --set model.montecarlo.seed=1
+run b "${small[@]}" "${one[@]}" --set model.montecarlo.seed=2
+run a2 "${small[@]}" "${two[@]}" --set model.montecarlo.seed=1
+run single "${small[@]}" "${one[@]}" --set 'model.name="single"'  # no standard errors
+A=$tmp/a/nimbus.h5 B=$tmp/b/nimbus.h5 A2=$tmp/a2/nimbus.h5 S=$tmp/single/nimbus.h5
+IA=$tmp/a/nimbus.exr IA2=$tmp/a2/nimbus.exr
+
+# The table: one header (rank 0 only), a row per band, the image line.
+out=$(nim compare "$A" "$B" --image-a "$IA" --image-b "$IA2" 2>&1); code=$?
+check "table exits 0 (exit $code)" [ $code -eq 0 ]
+check "table header once" [ "$(echo "$out" | grep -c "fluence_diffuse of .* against reference")" -eq 1 ]
+check "table columns" bash -c 'echo "$1" | grep -q "band *rel L2 *max rel *RMS z *cells"' _ "$out"
+for band in r g b; do
+  check "table row $band" bash -c 'echo "$1" | grep -Eq "^$2 +[0-9.]+e[-+][0-9]+ +[0-9.]+e[-+][0-9]+ +[0-9.]+ +[0-9]+$"' _ "$out" "$band"
+done
+check "table image line" bash -c 'echo "$1" | grep -Eq "^image: RMSE [0-9.]+e[-+][0-9]+, relative error [0-9.]+e[-+][0-9]+ over 640 pixels$"' _ "$out"
+# Without a standard error in the reference the RMS z column shows "-" (here another field:
+# the unscattered fluence of the same light pass).
+out=$(nim compare "$A" "$S" --field fluence_reduced 2>&1)
+check "no stderr: RMS z '-'" bash -c 'echo "$1" | grep -Eq "^r +[0-9.]+e[-+][0-9]+ +[0-9.]+e[-+][0-9]+ +- +[0-9]+$"' _ "$out"
+
+# JSON: each comparison to a file, then checked in one Python run.
+json() {  # json <name> compare-args...
+  local name=$1; shift
+  nim compare "$@" --json > "$tmp/$name.json" 2> "$tmp/$name.err" || echo "FAIL: compare --json $name exited non-zero"
+}
+json ab "$A" "$B"
+json aa "$A" "$A" --image-a "$IA" --image-b "$IA"
+json a_a2 "$A" "$A2" --image-a "$IA" --image-b "$IA2"
+json a2_a "$A2" "$A" --image-a "$IA2" --image-b "$IA"
+json a_single "$A" "$S" --field fluence_reduced
+results=$("$py" - "$tmp" <<'PY'
+import json, sys
+import h5py, numpy as np
+tmp = sys.argv[1]
+ok = bad = 0
+def check(what, cond):
+    global ok, bad
+    if cond: ok += 1
+    else: bad += 1; print("FAIL:", what)
+def load(name):
+    with open(f"{tmp}/{name}.json") as f:
+        return json.load(f)  # fails the test if not JSON
+def bands(r): return {b["band"]: b for b in r["bands"]}
+def close(x, y, rel=1e-12): return abs(x - y) <= rel * max(abs(x), abs(y), 1e-300)
+
+# A against B (two seeds): the metrics recomputed from the files, over cells with density.
+ab = bands(load("ab"))
+with h5py.File(f"{tmp}/a/nimbus.h5") as fa, h5py.File(f"{tmp}/b/nimbus.h5") as fb:
+    rho = fb["fields/density"][...].astype(float)
+    check("ab: bands r g b", sorted(ab) == ["b", "g", "r"])
+    for band, j in ab.items():
+        a = fa[f"fields/fluence_diffuse/{band}"][...].astype(float)[rho > 0]
+        b = fb[f"fields/fluence_diffuse/{band}"][...].astype(float)[rho > 0]
+        s = fb[f"fields/fluence_diffuse_stderr/{band}"][...].astype(float)[rho > 0]
+        check(f"ab {band}: cells", j["cells"] == int((rho > 0).sum()) > 0)
+        check(f"ab {band}: rel_l2 {j['rel_l2']}", close(j["rel_l2"], np.linalg.norm(a - b) / np.linalg.norm(b)))
+        check(f"ab {band}: max_rel {j['max_rel']}", close(j["max_rel"], np.abs(a - b).max() / np.abs(b).max()))
+        z = (a - b)[s > 0] / s[s > 0]
+        check(f"ab {band}: rms_z {j['rms_z']}", close(j["rms_z"], np.sqrt(np.mean(z * z))))
+        check(f"ab {band}: 0 < rel_l2 < 1", 0 < j["rel_l2"] < 1)
+
+# A against itself: all zero.
+aa = load("aa")
+for band, j in bands(aa).items():
+    check(f"aa {band}: zero", j["rel_l2"] == 0 and j["max_rel"] == 0 and j["rms_z"] == 0)
+check("aa image: zero over 640 pixels", aa["image"] == {"rmse": 0.0, "rel_error": 0.0, "pixels": 640})
+
+# A against 2A: |a - 2a| / |2a| = 0.5; 2A against A: 1. RMS z against 2A is half that against A
+# (z = -a / (2 s) against a / s); the image RMSE is symmetric.
+x, y = load("a_a2"), load("a2_a")
+for band in "rgb":
+    jx, jy = bands(x)[band], bands(y)[band]
+    check(f"a_a2 {band}: 0.5", close(jx["rel_l2"], 0.5) and close(jx["max_rel"], 0.5))
+    check(f"a2_a {band}: 1", close(jy["rel_l2"], 1.0) and close(jy["max_rel"], 1.0))
+    check(f"a_a2 {band}: rms_z half", close(jx["rms_z"], 0.5 * jy["rms_z"]) and jy["rms_z"] > 0)
+check(f"a_a2 image: rel_error 0.5 ({x['image']['rel_error']})", close(x["image"]["rel_error"], 0.5, 1e-6))
+check(f"a2_a image: rel_error 1 ({y['image']['rel_error']})", close(y["image"]["rel_error"], 1.0, 1e-6))
+check("image rmse symmetric, > 0", x["image"]["rmse"] > 0 and close(x["image"]["rmse"], y["image"]["rmse"]))
+check("image pixels", x["image"]["pixels"] == 640)
+
+# --field, and a reference without a standard error: no rms_z. Both runs made the same light
+# pass, so the unscattered fluence agrees.
+r = load("a_single")
+check("a_single: field fluence_reduced", r["field"] == "fluence_reduced" and len(r["bands"]) == 3)
+for band, j in bands(r).items():
+    check(f"a_single {band}: no rms_z, equal", "rms_z" not in j and j["rel_l2"] < 1e-6)
+
+# A file on another grid, for the error below.
+with h5py.File(f"{tmp}/coarse.h5", "w") as f:
+    f["fields/density"] = np.ones((6, 8, 8), dtype=np.float32)
+    for band in "rgb":
+        f[f"fields/fluence_diffuse/{band}"] = np.ones((6, 8, 8), dtype=np.float32)
+print(ok, bad)
+PY
+)
+echo "$results" | grep FAIL
+read -r p f <<< "$(echo "$results" | tail -1)"
+pass=$((pass + ${p:-0})) fail=$((fail + ${f:-1}))
+
+# Errors: non-zero exit and one clear line, no internal error.
+expect_error() {  # expect_error "<grep pattern>" compare-args...
+  local pattern=$1; shift
+  local out code
+  out=$(nim compare "$@" 2>&1); code=$?
+  if [ $code -ne 0 ] && [ $code -ne 124 ] && echo "$out" | grep -q -- "$pattern" && ! echo "$out" | grep -q "internal error"; then
+    pass=$((pass + 1))
+  else
+    fail=$((fail + 1)); echo "FAIL (exit $code, want /$pattern/): nimbus compare $*"; echo "$out" | tail -3
+  fi
+}
+expect_error "File does not exist: $tmp/missing.h5" "$A" "$tmp/missing.h5"
+expect_error "File does not exist: $tmp/missing.exr" "$A" "$B" --image-a "$tmp/missing.exr" --image-b "$IA"
+expect_error "nimbus: error: compare: give both --image-a and --image-b" "$A" "$B" --image-a "$IA"
+expect_error "nimbus: error: .*grids differ (8x8x6 against 16x16x12)" "$tmp/coarse.h5" "$A"
+echo "not HDF5" > "$tmp/text.h5"
+expect_error "nimbus: error: cannot open HDF5 file '$tmp/text.h5'" "$A" "$tmp/text.h5"
+
+echo "$pass passed, $fail failed"
+[ $fail -eq 0 ]

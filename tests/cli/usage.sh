@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# The command line as a user meets it, on one rank: usage errors are one "nimbus: error:" line
+# naming the bad argument with a hint, exit status 1; the global options may follow the
+# subcommand; `nimbus info` makes the checks a run makes (and refuses a grid that does not fit
+# in memory without allocating it); `nimbus compare` names the fields it supports and warns
+# when A and B are runs of different media.
+set -u
+nimbus=$1
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+pass=0 fail=0
+
+# check "<what>" <want exit> "<grep pattern>" args...: exit status, one error line at most, pattern.
+check() {
+  local what=$1 want=$2 pattern=$3; shift 3
+  local out code lines
+  out=$(timeout 120 "$nimbus" "$@" 2>&1); code=$?
+  lines=$(echo "$out" | grep -c "nimbus: error:")
+  if [ "$code" -eq "$want" ] && { [ "$want" -eq 0 ] || [ "$lines" -eq 1 ]; } && echo "$out" | grep -q -- "$pattern"; then
+    pass=$((pass + 1))
+  else
+    fail=$((fail + 1))
+    echo "FAIL: $what (exit $code, want $want; $lines error lines; want /$pattern/): nimbus $*"
+    echo "$out" | tail -5
+  fi
+}
+
+small=(--set "grid.n=[12,12,8]" --set "camera.resolution=[16,12]")
+
+# Usage errors: exit 1, the bad argument named, a pointer to --help.
+check "unknown command" 1 "nimbus: error: unknown command 'bogus'; commands: run, info, compare (see nimbus --help)" bogus
+check "no command" 1 "a command is required.*nimbus --help" 
+check "unknown option" 1 "nimbus: error:.*--bogus.*nimbus run --help" run --bogus
+check "bad log level" 1 "nimbus: error: --log-level: loud" --log-level loud info
+check "missing file" 1 "nimbus: error:.*no_such.h5" compare "$tmp/no_such.h5" "$tmp/no_such.h5"
+check "missing argument" 1 "nimbus: error:.*nimbus compare --help" compare
+# Global options after the subcommand: --log-level warn silences info's report.
+out=$("$nimbus" info "${small[@]}" --log-level warn 2>&1); code=$?
+if [ $code -eq 0 ] && ! echo "$out" | grep -q "grid:"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: info --log-level warn (exit $code)"; echo "$out" | tail -3; fi
+check "log level after the subcommand" 0 "decomposition:" info "${small[@]}" --log-level debug
+
+# info refuses what run refuses, with the same message.
+check "info: duplicate band name" 1 "optics\[1\].name = \"r\" repeats optics\[0\].name" info --set 'optics[1].name="r"'
+check "info: band name with /" 1 "optics\[2\].name = \"b/x\" is not a valid band name" info --set 'optics[2].name="b/x"'
+check "info: empty band name" 1 "optics\[0\].name must not be empty" info --set 'optics[0].name=""'
+check "info: model auto" 1 "model.name = \"auto\" is not allowed" info --set 'model.name="auto"'
+check "info: model none" 1 "model.name = \"none\" is not allowed" info --set 'model.name="none"'
+check "info: camera sees nothing" 1 "camera.look_at: the camera looks at nothing" info --set "camera.look_at=[0.5,-3,0.42]"
+check "info: empty medium" 0 "no non-empty cells" info "${small[@]}" --set medium.density=0
+# A grid far beyond any machine: the estimate, then a clear error, and nothing allocated.
+check "info: grid too large" 1 "the grid does not fit in memory.*use more ranks" info --set "grid.n=[65536,65536,65536]"
+check "info: grid too large, estimate" 1 "memory estimate per rank" info --set "grid.n=[65536,65536,65536]"
+check "run: grid too large" 1 "the grid does not fit in memory.*use more ranks" run --set "grid.n=[65536,65536,65536]" --out "$tmp/big"
+# An allocation that fails anyway (here under a 1 GB address-space limit) is a clear error too.
+out=$( (ulimit -v 1000000; timeout 120 "$nimbus" run --set "grid.n=[256,256,256]" --set 'medium.kind="box"' \
+        --set output.image=false --out "$tmp/big" 2>&1) ); code=$?
+if [ $code -eq 1 ] && echo "$out" | grep -q "nimbus: error: not enough memory on rank 0; use more ranks.*nimbus info" \
+   && ! echo "$out" | grep -q "internal error"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: bad_alloc (exit $code)"; echo "$out" | tail -3; fi
+
+# compare: two runs of one medium, a third of another.
+run_small() { "$nimbus" run "${small[@]}" --set output.image=false --out "$tmp/$1" "${@:2}" > /dev/null 2>&1; }
+if run_small a && run_small a2 && run_small b --set medium.density=2.0; then
+  a=$tmp/a/nimbus.h5 a2=$tmp/a2/nimbus.h5 b=$tmp/b/nimbus.h5
+  check "compare: vector field" 1 "unsupported field 'flux_diffuse'; choose fluence_diffuse | fluence_reduced | transmittance_sun" compare "$a" "$a2" --field flux_diffuse
+  check "compare: unknown field" 1 "unsupported field 'foo'; choose fluence_diffuse" compare "$a" "$a2" --field foo
+  check "compare: other field" 0 "transmittance_sun of" compare "$a" "$a2" --field transmittance_sun
+  out=$("$nimbus" compare "$a" "$a2" 2>&1); code=$?
+  if [ $code -eq 0 ] && ! echo "$out" | grep -q "differ"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: compare of one medium warns (exit $code)"; echo "$out" | tail -3; fi
+  check "compare: different media warn" 0 "the density fields of .* differ" compare "$a" "$b"
+  out=$("$nimbus" compare "$a" "$b" --json 2>/dev/null); code=$?
+  if [ $code -eq 0 ] && echo "$out" | /usr/bin/python3 -c 'import json, sys; r = json.load(sys.stdin); sys.exit(0 if r["same_medium"] is False and r["density_max_rel_diff"] > 0.1 else 1)'; then
+    pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: compare --json does not flag different media (exit $code)"; echo "$out" | head -8; fi
+  out=$("$nimbus" compare "$a" "$a2" --json 2>/dev/null)
+  if echo "$out" | /usr/bin/python3 -c 'import json, sys; sys.exit(0 if json.load(sys.stdin)["same_medium"] is True else 1)'; then
+    pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: compare --json flags one medium as different"; fi
+else
+  fail=$((fail + 1)); echo "FAIL: the small runs for compare did not run"
+fi
+
+echo "$pass passed, $fail failed"
+[ $fail -eq 0 ]
