@@ -90,8 +90,12 @@ def plot(rows, path):
     colors = plt.get_cmap("tab20").colors
     # One marker and colour per model across every panel, one legend beside the panels.
     style = {label: (markers[i % len(markers)], colors[i % len(colors)]) for i, label in enumerate(labels)}
-    fig, axes = plt.subplots(1, len(scenes), figsize=(5 * len(scenes) + 2, 4), squeeze=False)
-    for ax, scene in zip(axes[0], scenes):
+    ncols = min(3, len(scenes))
+    nrows = (len(scenes) + ncols - 1) // ncols
+    fig, axes = plt.subplots(nrows, ncols, figsize=(5 * ncols + 2, 4 * nrows), squeeze=False)
+    for ax in axes.flat[len(scenes):]:
+        ax.set_visible(False)
+    for ax, scene in zip(axes.flat, scenes):
         for label in labels:
             pts = [(r["wall_s"], r["rel_l2"]) for r in rows if r["scene"] == scene and r["model"] == label and r["rel_l2"] > 0]
             if pts:
@@ -103,7 +107,7 @@ def plot(rows, path):
         ax.grid(True, which="both", alpha=0.3)
     handles = [Line2D([], [], linestyle="", marker=style[l][0], color=style[l][1], markersize=8) for l in labels]
     fig.legend(handles, labels, loc="center right", fontsize=8, frameon=False)
-    fig.tight_layout(rect=(0, 0, 1 - 1.6 / (5 * len(scenes) + 2), 1))
+    fig.tight_layout(rect=(0, 0, 1 - 1.6 / (5 * ncols + 2), 1))
     fig.savefig(path, dpi=120)
 
 
@@ -136,7 +140,17 @@ def main():
             print(f"{tag}: reference done in {ref_wall:.1f} s", flush=True)
         for label, sets in models:
             run_dir = os.path.join(args.out, tag, label)
-            wall, report = run_nimbus(args, scene, args.set + sets, run_dir)
+            try:
+                wall, report = run_nimbus(args, scene, args.set + sets, run_dir)
+            except RuntimeError:
+                # A model that refuses the scene (e.g. volume sources outside dom/montecarlo) is
+                # skipped with its reason; any other failure stops the study.
+                with open(os.path.join(run_dir, "log.txt")) as log:
+                    refusal = [l.strip() for l in log if "does not support" in l]
+                if not refusal:
+                    raise
+                print(f"{tag} {label}: skipped: {refusal[0]}", flush=True)
+                continue
             cmp = compare(args, run_dir, ref_dir)
             bands = cmp["bands"]
             row = {
