@@ -149,6 +149,7 @@ TEST(Hdf5Writer, TemporaryFileUntilCommit) {
         MPI_Barrier(MPI_COMM_WORLD);
         const std::string tmp = w.temporary_path();
         EXPECT_NE(tmp, path);
+        EXPECT_NE(tmp, path + ".tmp");  // unique to the run (io/output/output_files.h)
         EXPECT_EQ(fs::path(tmp).parent_path(), fs::path(path).parent_path());  // renamed in place
         EXPECT_TRUE(fs::exists(tmp));
         EXPECT_FALSE(fs::exists(path));

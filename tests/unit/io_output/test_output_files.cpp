@@ -136,23 +136,6 @@ TEST(Hdf5Writer, NothingFinalUntilTheSetCommits) {
     }
 }
 
-TEST(Hdf5Writer, StandaloneWriterUsesUniqueTemporaryUntilCommit) {
-    ScratchDir dir("outfiles_alone");
-    const Grid grid = test::sample_grid();
-    Decomposition d(MPI_COMM_WORLD, grid.n);
-    const std::string path = dir.file("alone.h5");
-    Hdf5Writer w(d, grid, path);
-    test::write_sample_fields(w, d);
-    MPI_Barrier(MPI_COMM_WORLD);
-    EXPECT_TRUE(fs::exists(w.temporary_path()));
-    EXPECT_NE(w.temporary_path(), path + ".tmp");
-    EXPECT_FALSE(fs::exists(path));
-    w.commit();
-    EXPECT_FALSE(fs::exists(w.temporary_path()));
-    EXPECT_TRUE(fs::exists(path));
-    EXPECT_TRUE(fs::exists(dir.file("alone.xdmf")));
-}
-
 // A grid whose fields (64 KiB of float32 each) do not fit under a 96 KiB file size limit.
 Grid big_grid() {
     Grid g = test::sample_grid();
