@@ -351,6 +351,19 @@ TEST(Forward, SameSeedSameResultOtherSeedDiffers) {
     EXPECT_TRUE(differs);
 }
 
+// Band 0's fluence and standard error of a equal b's to 1e-12 of b's peak fluence on box (the
+// same photons: only the order of the sums may differ).
+void expect_same_fields(const ForwardResult& a, const ForwardResult& b, const Box& box) {
+    double worst = 0.0, peak = 0.0;
+    for_each_cell(box, [&](int i, int j, int k) {
+        worst = std::max(worst, std::abs(a.fluence[0](i, j, k) - b.fluence[0](i, j, k)));
+        worst = std::max(worst, std::abs(a.fluence_stderr[0](i, j, k) - b.fluence_stderr[0](i, j, k)));
+        peak = std::max(peak, b.fluence[0](i, j, k));
+    });
+    EXPECT_GT(peak, 0.0);
+    EXPECT_LE(worst, 1e-12 * peak);
+}
+
 // Decomposition invariance: the world run equals a run of the whole grid on MPI_COMM_SELF to
 // round-off (the batches are the same photons; only the order of the final sums changes).
 TEST(Forward, AllRanksMatchOneRank) {
@@ -359,14 +372,7 @@ TEST(Forward, AllRanksMatchOneRank) {
     Slab self(MPI_COMM_SELF, 4.0, 0.98, 0.85, {6, 6, 12});
     const ForwardResult a = trace_forward(world.d, world.m, L, options(8000));
     const ForwardResult b = trace_forward(self.d, self.m, L, options(8000));
-    double worst = 0.0, peak = 0.0;
-    for_each_cell(world.d.local(), [&](int i, int j, int k) {
-        worst = std::max(worst, std::abs(a.fluence[0](i, j, k) - b.fluence[0](i, j, k)));
-        worst = std::max(worst, std::abs(a.fluence_stderr[0](i, j, k) - b.fluence_stderr[0](i, j, k)));
-        peak = std::max(peak, b.fluence[0](i, j, k));
-    });
-    EXPECT_GT(peak, 0.0);
-    EXPECT_LE(worst, 1e-12 * peak);
+    expect_same_fields(a, b, world.d.local());
     EXPECT_EQ(a.photons, b.photons);
     EXPECT_EQ(a.collisions, b.collisions);
     for (int q = 0; q < ncounters; ++q) EXPECT_NEAR(a.counters[0][q], b.counters[0][q], 1e-12 * a.counters[0][incident]);
@@ -420,14 +426,7 @@ TEST(Forward, StopsAtTheTimeBudget) {
     EXPECT_EQ(e.stop_reason, "photons");
     EXPECT_EQ(e.photons, r.photons);
     EXPECT_EQ(e.collisions, r.collisions);
-    double worst = 0.0, peak = 0.0;
-    for_each_cell(slab.d.local(), [&](int i, int j, int k) {
-        worst = std::max(worst, std::abs(r.fluence[0](i, j, k) - e.fluence[0](i, j, k)));
-        worst = std::max(worst, std::abs(r.fluence_stderr[0](i, j, k) - e.fluence_stderr[0](i, j, k)));
-        peak = std::max(peak, e.fluence[0](i, j, k));
-    });
-    EXPECT_GT(peak, 0.0);
-    EXPECT_LE(worst, 1e-12 * peak);
+    expect_same_fields(r, e, slab.d.local());
     const Counters& c = r.counters[0];
     for (int q = 0; q < ncounters; ++q) {
         EXPECT_NEAR(c[q], e.counters[0][q], 1e-12 * c[incident]);
