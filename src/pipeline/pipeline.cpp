@@ -17,7 +17,6 @@
 #include "solvers/registry.h"
 #include "src/core/error.h"
 #include "src/core/log.h"
-#include "src/render/camera.h"
 #include "src/render/ray_box.h"
 #include "src/render/raycaster.h"
 
@@ -95,24 +94,6 @@ void log_scene(const Scene& s, const Decomposition& d, const ScatteringModel& mo
     if (!opts.empty()) log::info("model options: {}", opts.dump());
 }
 
-// A camera whose view misses the domain renders only background: almost always a mistake in
-// the scene (position/look_at in the wrong units). Probes a 33 x 33 grid of view rays.
-void check_camera_sees_domain(const Scene& s) {
-    if (!s.output.image) return;
-    const Grid grid = make_grid(s.grid);
-    const Camera cam(s.camera, grid);
-    const Vec3 lo = grid.origin, hi = grid.upper();
-    for (int a = 0; a <= 32; ++a)
-        for (int b = 0; b <= 32; ++b) {
-            double t0, t1;
-            const Vec3 dir = cam.direction(a * cam.width() / 32.0, b * cam.height() / 32.0);
-            if (intersect_box(cam.position(), dir, lo, hi, t0, t1) && t1 > 0) return;
-        }
-    throw Error(fmt::format("the camera looks at nothing: the domain [0, {:.4g}] x [0, {:.4g}] x [0, {:.4g}] m "
-                            "is outside its field of view (check camera.position, look_at and units)",
-                            hi.x, hi.y, hi.z));
-}
-
 }  // namespace
 
 Scene load_run_scene(MPI_Comm comm, const RunOptions& opts) {
@@ -136,7 +117,8 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
     std::unique_ptr<ScatteringModel> model;
     run_collective(comm, [&] {
         model = make_model(scene.model);
-        check_camera_sees_domain(scene);
+        // Scenes built in code get the checks a scene file gets (ranges, camera sees the domain).
+        scene.validate();
     });
     if (scene.output.hdf5 || scene.output.image) prepare_output_dir(comm, scene.output.dir);
 
