@@ -129,8 +129,8 @@ int main(int argc, char** argv) {
             Report warm;
             run("pfmg-pcg", warm);
         }
-        const auto groups = diffusion::group_bands(m.bands, lights);
-        const auto problem = diffusion::make_problem(d, m, light, groups[0]);
+        const auto groups = diffusion::group_bands(m.bands, diffusion::term_strengths(lights, {}, m.nbands()));
+        const auto problem = diffusion::make_problem(d, m, light, {}, groups[0]);
         const Bare bare = bare_pfmg_pcg(d, problem);
         const double floor = bare.setup + bare.solve;
         if (rank == 0) {

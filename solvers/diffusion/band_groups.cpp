@@ -19,12 +19,12 @@ bool proportional(const std::vector<double>& a, const std::vector<double>& b, do
     return true;
 }
 
-// One rhs per band; a band proportional (over the lights) to an earlier rhs band shares it.
-BandGroup by_band(const OpticsGroup& og, const std::vector<DirectionalLight>& lights) {
+// One rhs per band; a band proportional (over the terms) to an earlier rhs band shares it.
+BandGroup by_band(const OpticsGroup& og, const std::vector<std::vector<double>>& strength) {
     BandGroup g{og.optics, {}, {}};
     for (const int b : og.bands) {
         std::vector<double> e;
-        for (auto& l : lights) e.push_back(band_value(l.E0, b));
+        for (const auto& t : strength) e.push_back(t[static_cast<size_t>(b)]);
         BandUse use{b, {}};
         for (size_t r = 0; r < g.rhs_weights.size() && use.terms.empty(); ++r) {
             double scale = 1.0;
@@ -39,13 +39,13 @@ BandGroup by_band(const OpticsGroup& og, const std::vector<DirectionalLight>& li
     return g;
 }
 
-// One rhs per colour class of lights (E0 over the group's bands proportional); lights dark in
-// every band of the group drop out.
-BandGroup by_colour(const OpticsGroup& og, const std::vector<DirectionalLight>& lights) {
-    const size_t nl = lights.size();
-    std::vector<std::vector<double>> colour(nl);  // E0 of light l over the group's bands
+// One rhs per colour class of terms (strengths over the group's bands proportional); terms
+// dark in every band of the group drop out.
+BandGroup by_colour(const OpticsGroup& og, const std::vector<std::vector<double>>& strength) {
+    const size_t nl = strength.size();
+    std::vector<std::vector<double>> colour(nl);  // strength of term l over the group's bands
     for (size_t l = 0; l < nl; ++l)
-        for (const int b : og.bands) colour[l].push_back(band_value(lights[l].E0, b));
+        for (const int b : og.bands) colour[l].push_back(strength[l][static_cast<size_t>(b)]);
     std::vector<int> first;  // first light of each class
     std::vector<std::vector<double>> weights;
     for (size_t l = 0; l < nl; ++l) {
@@ -58,7 +58,7 @@ BandGroup by_colour(const OpticsGroup& og, const std::vector<DirectionalLight>& 
             weights.emplace_back(nl, 0.0);
             scale = 1.0;
         }
-        weights[c][l] = scale;  // light l = scale x the class's first light, in every band
+        weights[c][l] = scale;  // term l = scale x the class's first term, in every band
     }
     BandGroup g{og.optics, weights, {}};
     for (size_t k = 0; k < og.bands.size(); ++k) {
@@ -75,17 +75,29 @@ BandGroup by_colour(const OpticsGroup& og, const std::vector<DirectionalLight>& 
 }  // namespace
 
 std::vector<BandGroup> group_bands(const std::vector<BandOptics>& bands,
-                                   const std::vector<DirectionalLight>& lights, bool superpose) {
+                                   const std::vector<std::vector<double>>& strength, bool superpose) {
     std::vector<BandGroup> groups;
     for (const OpticsGroup& og : group_by_optics(bands)) {
-        BandGroup g = by_band(og, lights);
+        BandGroup g = by_band(og, strength);
         if (superpose) {
-            BandGroup c = by_colour(og, lights);
+            BandGroup c = by_colour(og, strength);
             if (c.rhs_weights.size() < g.rhs_weights.size()) g = std::move(c);
         }
         groups.push_back(std::move(g));
     }
     return groups;
+}
+
+std::vector<std::vector<double>> term_strengths(const std::vector<DirectionalLight>& lights,
+                                                const std::vector<VolumeSource>& sources, int nbands) {
+    std::vector<std::vector<double>> strength;
+    for (const DirectionalLight& l : lights) {
+        std::vector<double> e;
+        for (int b = 0; b < nbands; ++b) e.push_back(band_value(l.E0, b));
+        strength.push_back(std::move(e));
+    }
+    for (const VolumeSource& s : sources) strength.push_back(s.power);  // one value per band (volume_sources)
+    return strength;
 }
 
 }  // namespace nimbus::diffusion

@@ -1,12 +1,13 @@
 // Grouping of bands for the diffusion solve (pure, no MPI). Bands with equal optics
 // (sigma_t, albedo, g) share a matrix. Within such a group the right-hand sides are a basis of
-// the bands' sources: the source of band b is sum over lights l of E0_l[b] S_l (S_l: light l's
-// source at unit irradiance), so with the P1 system linear,
-//   U_b = sum over right-hand sides r of scale_{b,r} U_r,  rhs r: sum over l of weight_{r,l} S_l.
+// the bands' sources. A source term t is a light (strength E0_t[b], W/m²) or a volume source
+// (strength power_t[b], W/m³); the source of band b is sum over terms t of strength_t[b] S_t
+// (S_t: term t's source at unit strength), so with the P1 system linear,
+//   U_b = sum over right-hand sides r of scale_{b,r} U_r,  rhs r: sum over t of weight_{r,t} S_t.
 // Two bases, the smaller is used:
-//   by band:   one rhs per band, bands whose E0 are proportional over the lights share one;
-//   by colour: one rhs per class of lights whose E0 are proportional over the group's bands
-//              (the sun and a one-colour sky: 2 solves for any number of bands).
+//   by band:   one rhs per band, bands whose strengths are proportional over the terms share one;
+//   by colour: one rhs per class of terms whose strengths are proportional over the group's
+//              bands (the sun and a one-colour sky: 2 solves for any number of bands).
 // The colour basis needs superposition; the flux-limited solve is nonlinear and asks for the
 // band basis (superpose = false).
 #pragma once
@@ -14,6 +15,7 @@
 #include <vector>
 
 #include "src/physics/lights.h"
+#include "src/scene/emission.h"
 #include "src/scene/scene.h"
 
 namespace nimbus::diffusion {
@@ -30,11 +32,17 @@ struct BandUse {
 
 struct BandGroup {
     BandOptics optics;
-    std::vector<std::vector<double>> rhs_weights;  // per rhs, per light: weight of S_l
+    std::vector<std::vector<double>> rhs_weights;  // per rhs, per source term: weight of S_t
     std::vector<BandUse> bands;                    // every band of this group
 };
 
+// strength[t][b]: source term t's strength in band b (term_strengths).
 std::vector<BandGroup> group_bands(const std::vector<BandOptics>& bands,
-                                   const std::vector<DirectionalLight>& lights, bool superpose = true);
+                                   const std::vector<std::vector<double>>& strength, bool superpose = true);
+
+// The source terms of a run, lights first (E0 per band) and then the volume sources (power per
+// band, emission.h), each as a strength per band of the nbands bands.
+std::vector<std::vector<double>> term_strengths(const std::vector<DirectionalLight>& lights,
+                                                const std::vector<VolumeSource>& sources, int nbands);
 
 }  // namespace nimbus::diffusion

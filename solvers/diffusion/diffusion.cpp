@@ -6,6 +6,7 @@
 #include "solvers/diffusion/band_groups.h"
 #include "solvers/diffusion/solve_diffusion.h"
 #include "solvers/diffusion/sources.h"
+#include "src/scene/emission.h"
 
 namespace nimbus {
 namespace {
@@ -42,7 +43,10 @@ public:
         // Superposition of the lights' colours needs a linear solve (not the flux limiter); the
         // sum of right-hand sides is clamped, not each of them (clamping is not linear).
         const bool linear = opt_.flux_limiter == "none";
-        const auto groups = diffusion::group_bands(m.bands, ctx.light.lights, linear);
+        const std::vector<VolumeSource> sources = volume_sources(ctx.scene);  // [[sources]], q = power / 4π
+        check_volume_sources(sources, m.rho, d);
+        const auto groups = diffusion::group_bands(
+            m.bands, diffusion::term_strengths(ctx.light.lights, sources, m.nbands()), linear);
         DiffusionOptions solve_opt = opt_;
         if (linear) solve_opt.clamp_negative = false;
         ctx.report.values()["diffusion"]["matrices"] = groups.size();
@@ -51,7 +55,7 @@ public:
             diffusion::DiffusionProblem p;
             {
                 ScopedTimer t(ctx.report, "sources");
-                p = diffusion::make_problem(d, m, ctx.light, group, opt_.delta_scaling);
+                p = diffusion::make_problem(d, m, ctx.light, sources, group, opt_.delta_scaling);
             }
             const auto res = diffusion::solve_diffusion(d, p, solve_opt, ctx.report);
             solves += static_cast<int>(group.rhs_weights.size());

@@ -8,7 +8,8 @@
 namespace nimbus::diffusion {
 
 DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const LightTransport& light,
-                              const BandGroup& group, bool delta_scaling) {
+                              const std::vector<VolumeSource>& sources, const BandGroup& group,
+                              bool delta_scaling) {
     const BandOptics& o = group.optics;
     const DeltaScaledOptics s = delta_scale(o.sigma_t, o.albedo, o.g, delta_scaling);
     DiffusionProblem p;
@@ -27,20 +28,24 @@ DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const Lig
     });
     // Per unit density and unit E0 T': Q0' = q0, Q1' = g' q0 w, G = g' q0 w / sigma_tr.
     const double q0 = o.sigma_t * o.albedo * (1.0 - s.f) / (4.0 * std::numbers::pi);
+    const size_t nl = light.lights.size();
     for (const std::vector<double>& weight : group.rhs_weights) {
         Field<double> Q0(d.local(), 0, 1, 0.0), G(d.local(), 1, 3, 0.0);
         for_each_cell(d.local(), [&](int i, int j, int k) {
             if (p.kappa_tr(i, j, k) <= 0.0) return;
             double e = 0.0;
             Vec3 ew;
-            for (size_t l = 0; l < light.lights.size(); ++l) {
+            for (size_t l = 0; l < nl; ++l) {
                 if (weight[l] == 0.0) continue;
                 const double et = weight[l] *
                                   light.transmittance(static_cast<int>(l), s.sigma_t, i, j, k);
                 e += et;
                 ew += light.lights[l].w * et;
             }
-            Q0(i, j, k) = m.rho(i, j, k) * q0 * e;
+            double emitted = 0.0;  // W/m³ at unit strengths x weights (kappa_tr > 0: the cell has density)
+            for (size_t t = 0; t < sources.size(); ++t)
+                if (weight[nl + t] != 0.0 && sources[t].cells.contains(i, j, k)) emitted += weight[nl + t];
+            Q0(i, j, k) = m.rho(i, j, k) * q0 * e + emitted / (4.0 * std::numbers::pi);
             for (int c = 0; c < 3; ++c) G(i, j, k, c) = s.g * q0 * ew[c] / sigma_tr;
         });
         exchange_halo(G, d);

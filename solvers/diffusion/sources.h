@@ -4,7 +4,9 @@
 //   kappa_tr = rho sigma_t (1 - a g),  sigma_a = rho sigma_t (1 - a)   (invariant under scaling)
 //   Q0' = (1/4π) Σ_lights rho sigma_t a (1 - f) E0 T',  T' = exp(-sigma_t (1 - a f) tau_rho)
 //   G = Q1'/kappa_tr,  Q1' = g' Σ_lights (1/4π) rho sigma_t a (1 - f) E0 T' w_light
-// for each right-hand side band. G is the first-scatter flux per 4π; it depends on the
+//   + Σ_sources power/4π in the source's covered cells with density (emission.h; isotropic, so
+//     it adds to Q0 only and the delta-Eddington split leaves it alone)
+// for each right-hand side (weights over the terms: the lights, then `sources`; band_groups.h). G is the first-scatter flux per 4π; it depends on the
 // density only through T' (rho cancels), so it is continuous across density jumps.
 // Collective over d.comm() (halo exchange of G).
 #pragma once
@@ -17,7 +19,8 @@
 namespace nimbus::diffusion {
 
 DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const LightTransport& light,
-                              const BandGroup& group, bool delta_scaling = true);
+                              const std::vector<VolumeSource>& sources, const BandGroup& group,
+                              bool delta_scaling = true);
 
 // The part of the diffuse fluence that the delta-Eddington scaling keeps in the reduced
 // incident field, Σ_lights E0[band] (T' - T) (W/m²), and its flux Σ E0 (T' - T) w_light, at

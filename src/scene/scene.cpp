@@ -45,9 +45,9 @@ void validate_sources(const Scene& scene) {
                             grid.n[2] * grid.cell_size, grid.unit));
     }
     if (!sources.empty())
-        require(scene.model.name == "dom" || scene.model.name == "montecarlo",
+        require(scene.model.name == "dom" || scene.model.name == "montecarlo" || scene.model.name == "diffusion",
                 fmt::format("model.name: model {} does not support [[sources]] (volume emission); "
-                            "use dom or montecarlo",
+                            "use dom, diffusion or montecarlo",
                             scene.model.name));
 }
 
