@@ -8,6 +8,7 @@
 #include "src/core/error.h"
 #include "src/core/log.h"
 #include "src/core/progress.h"
+#include "src/scene/emission.h"
 
 namespace nimbus {
 namespace {
@@ -31,11 +32,13 @@ public:
         ScopedTimer timer(ctx.report, "lpm");
         const lpm::Angular ang(opt_.p, opt_.k);
         const int nb = ctx.medium.nbands();
+        const std::vector<VolumeSource> sources = volume_sources(ctx.scene);  // [[sources]], q = power / 4π
+        check_volume_sources(sources, ctx.medium.rho, d);
         Progress progress("lpm map sweeps", static_cast<double>(nb * opt_.iterations * 6), d.rank() == 0);
         out = DiffuseSolution{};
         nlohmann::json bands = nlohmann::json::array();
         for (int b = 0; b < nb; ++b) {
-            lpm::BandResult r = lpm::solve_band(d, ctx.medium, ctx.light, b, opt_, ang, &progress, &ctx.report);
+            lpm::BandResult r = lpm::solve_band(d, ctx.medium, ctx.light, b, opt_, ang, &progress, &ctx.report, sources);
             const double total = std::accumulate(r.sweep_seconds.begin(), r.sweep_seconds.end(), 0.0);
             const double mean = r.sweep_seconds.empty() ? 0.0 : total / static_cast<double>(r.sweep_seconds.size());
             bands.push_back({{"band", ctx.medium.bands[static_cast<size_t>(b)].name},

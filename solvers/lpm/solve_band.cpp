@@ -3,6 +3,7 @@
 #include <mpi.h>
 
 #include <algorithm>
+#include <numbers>
 
 #include "solvers/lpm/map_sweep.h"
 #include "solvers/lpm/tail.h"
@@ -24,7 +25,8 @@ double global_max(double v, MPI_Comm c) {
 }  // namespace
 
 BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransport& light, int band,
-                      const LpmOptions& opt, const Angular& ang, Progress* progress, Report* report) {
+                      const LpmOptions& opt, const Angular& ang, Progress* progress, Report* report,
+                      const std::vector<VolumeSource>& sources) {
     const BandOptics& bo = m.bands[static_cast<size_t>(band)];
     const Box& own = d.local();
     const int nm = ang.coarse_bins();
@@ -57,6 +59,15 @@ BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransp
             for (int c = 0; c < nm; ++c) u[c] += q * bf[static_cast<size_t>(c)] / ang.coarse_solid_angle(c);
         });
     }
+    // Volume emission: isotropic, power/4π in every bin (W/(m³ sr)).
+    if (!sources.empty())
+        for_each_cell(own, [&](int i, int j, int k) {
+            const double power = emitted_power(sources, m.rho, band, i, j, k);
+            if (power == 0.0) return;
+            source += power * V;
+            double* u = &U(i, j, k);
+            for (int c = 0; c < nm; ++c) u[c] += power / (4.0 * std::numbers::pi);
+        });
     double u_max0 = 0.0;
     for_each_cell(own, [&](int i, int j, int k) {
         for (int c = 0; c < nm; ++c) u_max0 = std::max(u_max0, U(i, j, k, c));

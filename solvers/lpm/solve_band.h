@@ -1,12 +1,14 @@
 // The light propagation maps iteration for one wavelength band (Fattal 2009 §3.4):
 //   U^m   <- first-scatter source: kappa a Σ_l E0_l T_l ∫_{Ω^m} p(ω·w_l) dω / |Ω^m|  (W/(m³ sr))
+//            + the volume sources' isotropic emission power/4π in every bin (emission.h)
 //   repeat until max U < epsilon · max(first-scatter source) or `iterations` rounds:
 //     for each map -Z, +Z, +X, -X, +Y, -Y: sweep_map (snapshot Ũ, propagate, deposit)
 // The reduced sun E0 T is not propagated (it is fluence_reduced); only light scattered at
-// least once is, so fluence = ∫ I_d dω (DESIGN §1). Collective over d.comm(); slabs along z.
+// least once is, so fluence = ∫ I_d dω (DESIGN §1); emitted light is diffuse light from the
+// start. Collective over d.comm(); slabs along z.
 //
 // Energy bookkeeping (watts, global sums), exact to round-off for any iteration count:
-//   source = Σ_cells V kappa a Σ_l E0_l T_l  =  escaped + absorbed + remaining + truncated,
+//   source = Σ_cells V (kappa a Σ_l E0_l T_l + power)  =  escaped + absorbed + remaining + truncated,
 //   absorbed = Σ V (1 - a) kappa φ,  remaining = Σ V Σ_m |Ω^m| U^m (unpropagated at the end),
 // all measured BEFORE the tail (opt.tail, tail.h) adds its estimate of what `remaining` would
 // still contribute to the fluence (and flux).
@@ -21,6 +23,7 @@
 #include "src/core/report.h"
 #include "src/model/model.h"
 #include "src/model/options.h"
+#include "src/scene/emission.h"
 #include "src/scene/medium.h"
 
 namespace nimbus::lpm {
@@ -45,8 +48,9 @@ inline constexpr int kMapOrder[6] = {5, 4, 0, 1, 2, 3};
 
 // Collective. m.rho must have its ghost layer exchanged; light.tau_rho per light term.
 // report: receives the diffusion tail's solver record (a scratch report when null).
+// sources: the scene's volume sources (volume_sources), none by default.
 BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransport& light, int band,
                       const LpmOptions& opt, const Angular& ang, Progress* progress = nullptr,
-                      Report* report = nullptr);
+                      Report* report = nullptr, const std::vector<VolumeSource>& sources = {});
 
 }  // namespace nimbus::lpm

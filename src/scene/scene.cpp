@@ -45,9 +45,10 @@ void validate_sources(const Scene& scene) {
                             grid.n[2] * grid.cell_size, grid.unit));
     }
     if (!sources.empty())
-        require(scene.model.name == "dom" || scene.model.name == "montecarlo" || scene.model.name == "diffusion",
+        require(scene.model.name == "dom" || scene.model.name == "montecarlo" || scene.model.name == "diffusion" ||
+                    scene.model.name == "lpm",
                 fmt::format("model.name: model {} does not support [[sources]] (volume emission); "
-                            "use dom, diffusion or montecarlo",
+                            "use dom, diffusion, lpm or montecarlo",
                             scene.model.name));
 }
 

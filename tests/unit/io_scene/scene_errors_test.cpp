@@ -154,12 +154,12 @@ TEST(SceneErrors, NegativeDensityScale) {
 
 TEST(SceneErrors, Sources) {
     const std::string ok = "[[sources]]\nlo = [1, 1, 1]\nhi = [3, 3, 3]\npower = 2.0\n";
-    // Only dom, diffusion and montecarlo model volume emission; the others refuse the scene.
-    for (const char* model : {"single", "lpm", "psf"})
+    // Only dom, diffusion, lpm and montecarlo model volume emission; the others refuse the scene.
+    for (const char* model : {"single", "psf"})
         expect_error(edit("name = \"single\"", std::string("name = \"") + model + "\"\n" + ok),
                      std::string("name = \"") + model, {"model " + std::string(model) + " does not support [[sources]]",
-                                                          "use dom, diffusion or montecarlo"});
-    for (const char* model : {"dom", "diffusion", "montecarlo"})
+                                                          "use dom, diffusion, lpm or montecarlo"});
+    for (const char* model : {"dom", "diffusion", "lpm", "montecarlo"})
         EXPECT_NO_THROW(load_scene_string(edit("name = \"single\"", std::string("name = \"") + model + "\"\n" + ok), "ok.toml"));
     const std::string dom = "name = \"dom\"\n";
     expect_error(edit("name = \"single\"", dom + "[[sources]]\nlo = [1, 4, 1]\nhi = [3, 3, 3]"), "lo = [1, 4, 1]",
