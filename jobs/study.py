@@ -152,15 +152,18 @@ def main():
                 print(f"{tag} {label}: skipped: {refusal[0]}", flush=True)
                 continue
             cmp = compare(args, run_dir, ref_dir)
-            bands = cmp["bands"]
+            # Bands whose relative errors are undefined (a zero reference: null, with "undefined")
+            # are left out of the means; NaN if none is left.
+            bands = [b for b in cmp["bands"] if b["rel_l2"] is not None]
+            nan = float("nan")
             row = {
                 "scene": scene, "model": label, "settings": " ".join(sets), "ranks": args.ranks,
                 "wall_s": wall, "solve_s": solve_seconds(report),
-                "rel_l2": sum(b["rel_l2"] for b in bands) / len(bands),
-                "max_rel": max(b["max_rel"] for b in bands),
-                "rms_z": sum(b.get("rms_z", float("nan")) for b in bands) / len(bands),
+                "rel_l2": sum(b["rel_l2"] for b in bands) / len(bands) if bands else nan,
+                "max_rel": max((b["max_rel"] for b in bands), default=nan),
+                "rms_z": sum(nan if b.get("rms_z") is None else b["rms_z"] for b in bands) / len(bands) if bands else nan,
                 "image_rmse": cmp.get("image", {}).get("rmse", float("nan")),
-                "image_rel": cmp.get("image", {}).get("rel_error", float("nan")),
+                "image_rel": nan if cmp.get("image", {}).get("rel_error") is None else cmp["image"]["rel_error"],
                 "reference_wall_s": ref_wall,
             }
             rows.append(row)

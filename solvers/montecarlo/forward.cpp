@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <utility>
 
@@ -74,6 +75,21 @@ StopEta eta_to_stop(const MonteCarloOptions& opt, int done, double trace_seconds
         if (left < eta.seconds) eta = {left, "target error (estimated from 1/sqrt(batches))"};
     }
     return eta;
+}
+
+int batch_split(double batch_seconds, double seconds_left, int batches, int ranks,
+                std::int64_t max_batches) {
+    if (!(batch_seconds > 0)) return 1;
+    const double left = std::max(0.0, seconds_left);
+    const int rounds_all = (batches + ranks - 1) / ranks;
+    auto rounds = [&](int split) { return std::floor(left * split / batch_seconds); };
+    if (rounds(1) >= rounds_all || rounds(1) * ranks >= std::min(batches, kMinBudgetBatches))
+        return 1;
+    int split = 1;
+    while (rounds(split) < rounds_all + 1 && batch_seconds / (2.0 * split) >= kMinBatchSeconds &&
+           static_cast<std::int64_t>(batches) * split * 2 <= max_batches)
+        split *= 2;
+    return split;
 }
 
 ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
@@ -174,8 +190,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     std::vector<double> sum(static_cast<size_t>(pcells * nb), 0.0), sumsq(sum.size(), 0.0);
     std::vector<double> rsum, rsumsq;
     if (settings.tally_reduced) rsum.assign(sum.size(), 0.0), rsumsq.assign(sum.size(), 0.0);
-    std::vector<Counters> batch_counters(static_cast<size_t>(B) * nb, Counters{});  // [batch][band]
-    std::int64_t my_photons = 0, my_collisions = 0, my_segments = 0;
+    std::int64_t my_photons = 0, my_collisions = 0, my_segments = 0;  // of the batches kept
 
     std::vector<VoxelGrid> voxels(groups.size());
     {
@@ -191,58 +206,90 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
             voxels[gi].domain = n;
         }
     }
-    // Batch tallies, [cell][band in group], reused across batches: only the cells a batch
-    // touched are folded into the sums and zeroed again, so a batch costs O(cells touched),
-    // not O(grid). A cell is listed when its tally of the light's strongest band is still 0
-    // (every tallied segment adds a positive amount there; a repeated entry folds 0, harmlessly).
-    size_t max_group = 1;
-    for (const OpticsGroup& G : groups) max_group = std::max(max_group, G.bands.size());
-    std::vector<double> tally(static_cast<size_t>(pcells) * max_group, 0.0), rtally, reduced_acc;
+    // The tally of the batch in flight, [cell][band], reused across batches: only the cells a
+    // batch touched are folded into the sums (or zeroed, for a batch the time budget cut), so a
+    // batch costs O(cells touched), not O(grid). A cell is listed when its tally of the light's
+    // strongest band is still 0 (every tallied segment adds a positive amount there; a repeated
+    // entry folds 0, harmlessly).
+    std::vector<double> tally(static_cast<size_t>(pcells) * nb, 0.0), rtally, reduced_acc;
     if (settings.tally_reduced) rtally.assign(tally.size(), 0.0), reduced_acc.assign(static_cast<size_t>(pcells), 0.0);
     std::vector<std::int64_t> touched, light_touched;  // cells tallied in this batch / by this light
     light_touched.reserve(static_cast<size_t>(std::min<std::int64_t>(cells, 1 << 20)));
     touched.reserve(static_cast<size_t>(std::min<std::int64_t>(cells, 1 << 20)));
+    // The rest of the batch in flight: its energy counters per band and its photon, collision
+    // and segment counts, kept apart until the round knows whether the batch is kept.
+    std::vector<Counters> flight(static_cast<size_t>(nb), Counters{});
+    std::int64_t flight_photons = 0, flight_collisions = 0, flight_segments = 0;
     const double t_setup = wall_time();
 
-    auto run_batch = [&](int batch) {
+    // The batch layout: batch b of term l is [b n_l / layout, (b+1) n_l / layout); layout is
+    // opt.batches unless the time budget's pilot split the batches (batch_split), at most so far
+    // that every batch keeps a photon of every term.
+    int layout = B;
+    std::int64_t max_layout = std::int64_t{1} << 30;
+    for (const std::int64_t nl_photons : n_light)
+        if (nl_photons > 0) max_layout = std::min(max_layout, nl_photons);
+
+    // Traces part [k0, k1) of the kChunkSteps steps of `batch` (of every term the photons
+    // [lo + (hi - lo) k0 / S, lo + (hi - lo) k1 / S); k0 = 0, k1 = S is the whole batch) into the
+    // batch in flight.
+    auto trace_chunk = [&](int batch, std::int64_t k0, std::int64_t k1, std::int64_t steps) {
+        auto offset = [steps](std::int64_t count, std::int64_t k) {  // count k / steps, exactly
+            return count / steps * k + count % steps * k / steps;
+        };
         for (size_t gi = 0; gi < groups.size(); ++gi) {
             const OpticsGroup& G = groups[gi];
             const int nbg = static_cast<int>(G.bands.size());
-            touched.clear();
+            const int* band = G.bands.data();
             const GridView grid = voxels[gi].view(periodic);
             const PhotonOptics po{G.optics.albedo, G.optics.g, opt.roulette_weight};
             for (size_t l = 0; l < nt; ++l) {
                 if (n_light[l] == 0) continue;
                 const VolumeEmitter* emitter = l < nl ? nullptr : &emitters[l - nl];
-                const std::int64_t lo = batch * n_light[l] / B, hi = (batch + 1) * n_light[l] / B;
+                const std::int64_t lo = batch * n_light[l] / layout,
+                                   hi = (batch + 1) * n_light[l] / layout;
                 if (hi <= lo) continue;
+                const std::int64_t from = lo + offset(hi - lo, k0), to = lo + offset(hi - lo, k1);
                 // Photon power per band (W) in this batch's estimate, and the fluence scale
                 // P len(m) / V = P len(cells) / h².
                 double P[64]{}, scale[64]{};
                 int strongest = 0;
                 for (int q = 0; q < nbg; ++q) {
-                    const int band = G.bands[static_cast<size_t>(q)];
-                    P[q] = (emitter ? emitter->total_power(band) : lights[l].E0[static_cast<size_t>(band)] * area[l]) /
+                    P[q] = (emitter ? emitter->total_power(band[q])
+                                    : lights[l].E0[static_cast<size_t>(band[q])] * area[l]) /
                            static_cast<double>(hi - lo);
                     scale[q] = P[q] / (h * h);
                     if (scale[q] > scale[strongest]) strongest = q;
                 }
                 if (!(scale[strongest] > 0)) {  // no power in this group's bands (nothing to tally)
-                    if (gi == 0) my_photons += hi - lo;
+                    if (gi == 0) flight_photons += to - from;
                     continue;
                 }
+                if (k0 == 0)  // once per batch: the term's power, and the rays that miss the box
+                    for (int q = 0; q < nbg; ++q) {
+                        Counters& c = flight[static_cast<size_t>(band[q])];
+                        if (emitter) {
+                            c[emitted] += emitter->total_power(band[q]);
+                        } else {
+                            const double E0 = lights[l].E0[static_cast<size_t>(band[q])];
+                            c[incident] += E0 * domain_area[l];
+                            c[escaped_direct] += E0 * (domain_area[l] - area[l]);
+                        }
+                    }
+                if (to <= from) continue;
                 // Trace (trace_light.h: w len accumulated per voxel), then fold the light's
                 // accumulators into the per-band batch tally (x P/h² per band) and zero them.
                 PathTally pt;
                 light_touched.clear();
                 const LightTerm term{emitter ? nullptr : &entry[l], emitter ? Vec3{0, 0, -1} : lights[l].w, emitter,
                                      static_cast<std::uint32_t>(l)};
-                trace_photons(grid, po, term, opt.seed, lo, hi, settings.forced_first_collision,
-                              settings.tally_reduced ? reduced_acc.data() : nullptr, light_touched, pt);
-                auto fold = [&](std::vector<double>& to, std::int64_t idx, double track) {
-                    double* c = to.data() + idx * nbg;
-                    if (c[strongest] == 0.0) touched.push_back(idx);
-                    for (int q = 0; q < nbg; ++q) c[q] += track * scale[q];
+                trace_photons(grid, po, term, opt.seed, from, to, settings.forced_first_collision,
+                              settings.tally_reduced ? reduced_acc.data() : nullptr, light_touched,
+                              pt);
+                auto fold = [&](std::vector<double>& to_tally, std::int64_t idx, double track) {
+                    double* c = to_tally.data() + idx * nb;
+                    if (c[band[strongest]] == 0.0) touched.push_back(idx);
+                    for (int q = 0; q < nbg; ++q) c[band[q]] += track * scale[q];
                 };
                 double diffuse_track = 0.0;  // sum of w len (cells) after the first scattering
                 for (const std::int64_t idx : light_touched) {
@@ -254,18 +301,11 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                         if (r != 0.0) fold(rtally, idx, r);
                     }
                 }
-                if (gi == 0) my_photons += hi - lo;  // a photon traced once per optics group
-                my_collisions += pt.collisions;
-                my_segments += pt.segments;
+                if (gi == 0) flight_photons += to - from;  // a photon traced once per optics group
+                flight_collisions += pt.collisions;
+                flight_segments += pt.segments;
                 for (int q = 0; q < nbg; ++q) {
-                    Counters& c = batch_counters[static_cast<size_t>(batch) * nb + G.bands[static_cast<size_t>(q)]];
-                    if (emitter) {
-                        c[emitted] += emitter->total_power(G.bands[static_cast<size_t>(q)]);
-                    } else {
-                        const double E0 = lights[l].E0[static_cast<size_t>(G.bands[static_cast<size_t>(q)])];
-                        c[incident] += E0 * domain_area[l];
-                        c[escaped_direct] += E0 * (domain_area[l] - area[l]);  // rays missing the box
-                    }
+                    Counters& c = flight[static_cast<size_t>(band[q])];
                     c[absorbed] += P[q] * pt.absorbed;
                     c[escaped_direct] += P[q] * pt.escaped_direct;
                     for (int f = 0; f < 6; ++f) c[escaped_xlo + f] += P[q] * pt.escaped_diffuse[f];
@@ -273,78 +313,185 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                     c[diffuse_volume] += P[q] * diffuse_track * h;
                 }
             }
-            const int* band = G.bands.data();
-            for (const std::int64_t c : touched) {
-                double* src = tally.data() + c * nbg;
-                double* s1 = sum.data() + c * nb;
-                double* s2 = sumsq.data() + c * nb;
-                for (int q = 0; q < nbg; ++q) {
-                    const double v = src[q];
-                    s1[band[q]] += v;
-                    s2[band[q]] += v * v;
-                    src[q] = 0.0;
-                }
-                if (settings.tally_reduced) {
-                    double* rsrc = rtally.data() + c * nbg;
-                    double* r1 = rsum.data() + c * nb;
-                    double* r2 = rsumsq.data() + c * nb;
-                    for (int q = 0; q < nbg; ++q) {
-                        const double r = rsrc[q];
-                        r1[band[q]] += r;
-                        r2[band[q]] += r * r;
-                        rsrc[q] = 0.0;
-                    }
-                }
-            }
         }
     };
-
-    // Rounds of batches; stop criteria decided on rank 0 and broadcast.
-    const int P = d.size();
-    const int round_size = std::max(2, P);
-    const bool any_light = std::any_of(n_light.begin(), n_light.end(), [](std::int64_t v) { return v > 0; });
-    Progress progress("montecarlo", B, d.rank() == 0);
-    std::vector<Counters> all_counters(batch_counters.size(), Counters{});
-    int done = 0;
-    res.stop_reason = any_light ? "photons" : "no light";
-    while (any_light && done < B) {
-        const int r0 = done, r1 = std::min(B, done + round_size), cnt = r1 - r0;
-        for (int b = r0 + d.rank() * cnt / P; b < r0 + (d.rank() + 1) * cnt / P; ++b) run_batch(b);
-        MPI_Allreduce(batch_counters[static_cast<size_t>(r0) * nb].data(),
-                      all_counters[static_cast<size_t>(r0) * nb].data(), cnt * nb * ncounters,
-                      MPI_DOUBLE, MPI_SUM, d.comm());
-        done = r1;
-        // Relative standard error of the total diffuse power over the completed batches.
-        double m = 0.0, m2 = 0.0;
-        for (int b = 0; b < done; ++b) {
-            double v = 0.0;
-            for (int q = 0; q < nb; ++q) v += all_counters[static_cast<size_t>(b) * nb + q][diffuse_volume];
-            m += v;
-            m2 += v * v;
+    // Ends the batch in flight: folds it into the sums and counts (keep) or drops it.
+    auto end_batch = [&](bool keep) {
+        auto fold = [&](std::vector<double>& from, std::vector<double>& s1, std::vector<double>& s2,
+                        std::int64_t c) {
+            double* v = from.data() + c * nb;
+            for (int q = 0; q < nb; ++q) {
+                if (keep) {
+                    s1[static_cast<size_t>(c * nb + q)] += v[q];
+                    s2[static_cast<size_t>(c * nb + q)] += v[q] * v[q];
+                }
+                v[q] = 0.0;
+            }
+        };
+        for (const std::int64_t c : touched) {
+            fold(tally, sum, sumsq, c);
+            if (settings.tally_reduced) fold(rtally, rsum, rsumsq, c);
         }
-        m /= done;
-        const double var = std::max(0.0, m2 / done - m * m) * done / std::max(1, done - 1);
-        res.rel_error = m > 0 ? std::sqrt(var / done) / m : 0.0;
+        touched.clear();
+        if (keep) {
+            my_photons += flight_photons;
+            my_collisions += flight_collisions;
+            my_segments += flight_segments;
+        }
+        flight_photons = flight_collisions = flight_segments = 0;
+        std::fill(flight.begin(), flight.end(), Counters{});
+    };
+
+    // Rounds: each rank traces one batch (ranks past the last batch idle). Without a time budget
+    // a batch is traced in one piece. With one, in chunks of about chunk_seconds, and a rank
+    // stops its batch at the budget's deadline (batches 0 and 1 always complete: a standard
+    // error needs two); the round keeps its batches up to the first incomplete one, so the
+    // result is always that of the first `done` batches of the layout, and a cut round ends the
+    // run on every rank. In round 0 a pilot measures how long a batch takes and may split the
+    // batches (batch_split; round 0 is then traced again). After each round rank 0 decides
+    // whether the target error is reached and broadcasts it.
+    const int P = d.size();
+    const bool budget = opt.time_budget > 0;
+    const bool any_light = std::any_of(n_light.begin(), n_light.end(), [](std::int64_t v) { return v > 0; });
+    const std::int64_t steps = budget ? kChunkSteps : 1;
+    const double chunk_seconds = std::min(kChunkSeconds, opt.time_budget / 50.0);
+    const double pilot_seconds = std::min(kPilotSeconds, opt.time_budget / 32.0);
+    double deadline = std::numeric_limits<double>::infinity();  // on this rank's clock
+    if (budget) {
+        // One clock for all ranks: the budget began when the earliest rank entered.
+        const double mine = wall_time() - t_start;
+        double earliest = 0.0;
+        MPI_Allreduce(&mine, &earliest, 1, MPI_DOUBLE, MPI_MAX, d.comm());
+        deadline = wall_time() + opt.time_budget - earliest;
+    }
+    // The pilot (collective, once, in round 0 of a budget run): the longest batch time over the
+    // ranks, estimated from the fraction of its batch each traced in `seconds`.
+    bool piloted = !budget;
+    double pilot_batch_seconds = 0.0;
+    auto pilot = [&](double fraction, double seconds) {
+        piloted = true;
+        const double mine[2] = {fraction > 0 ? seconds / fraction : 0.0, wall_time() - t_start};
+        double most[2] = {0.0, 0.0};
+        MPI_Allreduce(mine, most, 2, MPI_DOUBLE, MPI_MAX, d.comm());
+        pilot_batch_seconds = most[0];
+        return batch_split(most[0], opt.time_budget - most[1], layout, P, max_layout);
+    };
+    Progress progress("montecarlo", static_cast<double>(opt.photons), d.rank() == 0);
+    std::vector<Counters> all_counters;  // [batch][band], of the batches kept, summed over ranks
+    std::vector<double> round_sums;      // a round's counters and flags, summed over the ranks
+    const size_t per_batch = static_cast<size_t>(nb) * ncounters;
+    double diffuse_s1 = 0.0, diffuse_s2 = 0.0;  // sum, sum of squares of each batch's diffuse power
+    int done = 0;                               // batches kept (of this layout)
+    double t_layout = t_setup;                  // when tracing in this layout began
+    std::int64_t dk = 1;                        // chunk width in steps, adapted to chunk_seconds
+    res.stop_reason = any_light ? "photons" : "no light";
+    while (any_light && done < layout) {
+        const int cnt = std::min(layout - done, P);
+        const int batch = d.rank() < cnt ? done + d.rank() : -1;  // this rank's batch, or none
+        const double t_round = wall_time();
+        std::int64_t k = 0;
+        int split = 1;
+        while (batch >= 0 && k < steps) {
+            const std::int64_t k1 = std::min(steps, k + (budget ? dk : steps));
+            const double t0 = wall_time();
+            trace_chunk(batch, k, k1, steps);
+            k = k1;
+            if (!budget) continue;
+            const double now = wall_time();
+            if (now - t0 < 0.5 * chunk_seconds)
+                dk = std::min(steps, 2 * dk);
+            else if (now - t0 > 2.0 * chunk_seconds)
+                dk = std::max<std::int64_t>(1, dk / 2);
+            if (!piloted && now - t_round >= pilot_seconds) {
+                split = pilot(static_cast<double>(k) / static_cast<double>(steps), now - t_round);
+                if (split > 1) break;
+            }
+            if (batch >= 2 && k < steps && now >= deadline) break;
+        }
+        if (!piloted)
+            split = pilot(batch >= 0 ? static_cast<double>(k) / static_cast<double>(steps) : 0.0,
+                          wall_time() - t_round);
+        if (split > 1) {
+            end_batch(false);
+            log::info(
+                "montecarlo: a batch of {} photons would take {:.2f} s of the {:.2f} s time "
+                "budget: {} batches of {} photons instead",
+                opt.photons / layout, pilot_batch_seconds, opt.time_budget, layout * split,
+                opt.photons / (static_cast<std::int64_t>(layout) * split));
+            layout *= split;
+            dk = std::min(steps, dk * split);
+            t_layout = wall_time();
+            continue;
+        }
+        // The round's counters, which of its batches are complete, and whether any rank's clock
+        // has passed the deadline, summed over the ranks (each batch's values come from the one
+        // rank that traced it).
+        round_sums.assign(static_cast<size_t>(cnt) * (per_batch + 1) + 1, 0.0);
+        double* counters_of = round_sums.data();  // [batch in round][band][counter]
+        double* complete = counters_of + static_cast<size_t>(cnt) * per_batch;  // [batch in round]
+        double& expired = round_sums.back();
+        expired = wall_time() >= deadline ? 1.0 : 0.0;
+        if (batch >= 0) {
+            for (int q = 0; q < nb; ++q)
+                std::copy_n(
+                    flight[static_cast<size_t>(q)].begin(), ncounters,
+                    counters_of + static_cast<size_t>(batch - done) * per_batch + q * ncounters);
+            complete[batch - done] = k == steps ? 1.0 : 0.0;
+        }
+        MPI_Allreduce(MPI_IN_PLACE, round_sums.data(), static_cast<int>(round_sums.size()),
+                      MPI_DOUBLE, MPI_SUM, d.comm());
+        int kept = 0;
+        while (kept < cnt && complete[kept] > 0) ++kept;
+        if (batch >= 0) end_batch(batch < done + kept);
+        for (int b = 0; b < kept; ++b) {
+            double v = 0.0;
+            for (int q = 0; q < nb; ++q) {
+                Counters c;
+                std::copy_n(counters_of + static_cast<size_t>(b) * per_batch + q * ncounters,
+                            ncounters, c.begin());
+                all_counters.push_back(c);
+                v += c[diffuse_volume];
+            }
+            diffuse_s1 += v;
+            diffuse_s2 += v * v;
+        }
+        done += kept;
+        // Relative standard error of the total diffuse power over the kept batches.
+        const double m = diffuse_s1 / std::max(1, done);
+        const double var =
+            std::max(0.0, diffuse_s2 / std::max(1, done) - m * m) * done / std::max(1, done - 1);
+        res.rel_error = m > 0 ? std::sqrt(var / std::max(1, done)) / m : 0.0;
+        // The deadline cut a batch, or passed while the round's batches completed (every rank
+        // sees the same flags); the first two batches are traced in any case.
+        if (kept < cnt || (expired > 0 && done >= 2 && done < layout)) {
+            res.stop_reason = "time_budget";
+            break;
+        }
         if (d.rank() == 0) {
             const double now = wall_time();
-            const StopEta eta = eta_to_stop(opt, done, now - t_setup, now - t_start, res.rel_error);
-            progress.update(done, eta.seconds, eta.until);
+            MonteCarloOptions in_layout = opt;
+            in_layout.batches = layout;
+            const StopEta eta =
+                eta_to_stop(in_layout, done, now - t_layout, now - t_start, res.rel_error);
+            progress.update(static_cast<double>(opt.photons) * done / layout, eta.seconds,
+                            eta.until);
         }
         int stop = 0;
-        if (d.rank() == 0 && done < B) {
-            const double elapsed = wall_time() - t_start;
-            const double per_round = elapsed / ((done + round_size - 1) / round_size);
-            if (opt.time_budget > 0 && elapsed + per_round > opt.time_budget) stop = 1;
-            if (opt.target_rel_error > 0 && done >= 2 && m > 0 && res.rel_error < opt.target_rel_error) stop = 2;
-        }
+        if (d.rank() == 0 && done < layout)
+            stop = opt.target_rel_error > 0 && done >= 2 && m > 0 &&
+                           res.rel_error < opt.target_rel_error
+                       ? 1
+                       : 0;
         MPI_Bcast(&stop, 1, MPI_INT, 0, d.comm());
-        if (stop == 1) res.stop_reason = "time_budget";
-        if (stop == 2) res.stop_reason = "target_rel_error";
-        if (stop) break;
+        if (stop) {
+            res.stop_reason = "target_rel_error";
+            break;
+        }
     }
     progress.finish();
     const double t_traced = wall_time();
     res.batches = done;
+    res.layout_batches = layout;
     std::int64_t counts[3] = {my_photons, my_collisions, my_segments}, total[3] = {0, 0, 0};
     MPI_Allreduce(counts, total, 3, MPI_INT64_T, MPI_SUM, d.comm());
     res.photons = total[0];

@@ -6,10 +6,23 @@
 // boxes); batch b of light l is the photon index range [b N_l / B, (b+1) N_l / B); every photon
 // draws from a Philox stream keyed by (seed, light, photon index), so the same seed gives the
 // same result for any rank count (up to the round-off of the final sums). Batches run in
-// rounds; a round's batches go to the ranks in contiguous blocks; between rounds the stop
-// criteria (photon count, time budget, target relative error of the total diffuse power) are
-// decided collectively. Tallies are reduced to the owner of each box (MPI_Reduce_scatter),
-// only over cells with density (the fluence of empty cells is 0 by contract).
+// rounds of one batch per rank; between rounds the stop criteria (photon count, time budget,
+// target relative error of the total diffuse power) are decided collectively. Tallies are
+// reduced to the owner of each box (MPI_Reduce_scatter), only over cells with density (the
+// fluence of empty cells is 0 by contract).
+//
+// Time budget (opt.time_budget): a rank traces its batch in chunks of photon indices (about
+// kChunkSeconds each) and stops it at the budget's deadline, which all ranks share (measured
+// from the earliest rank's entry); the round that meets the deadline is the last. A batch the
+// deadline cut is dropped, and so is any batch after it in the round, so the result is always
+// that of the first `batches` complete batches of the layout: equal to round-off (the chunks
+// only change the order of the sums) to a budget-free run of the same photons, which is
+// `photons` photons in `batches` batches when every batch of every term holds the same photon
+// count (N_l divisible by the layout's batch count). Batches 0 and 1 always complete (the
+// standard error needs two). In round 0 a pilot measures how long a batch takes; when too few
+// batches would fit in the budget, the batches are split (batch_split) and round 0 is traced
+// again, so the budget holds whatever the photon count. Overshoot: one chunk plus the final
+// reduction (and batches 0 and 1 when even they do not fit).
 //
 // Photons start only on the live pixels of the medium's bounding box (photon.h, EntrySampler::
 // restrict_to); the rest of the domain's projected area is booked as direct escape.
@@ -68,10 +81,13 @@ struct ForwardResult {
     std::vector<Counters> counters, counters_stderr;
     std::int64_t photons = 0, collisions = 0;  // totals over all ranks
     std::int64_t segments = 0;                 // tallied diffuse track segments, all ranks (the walk's work)
-    int batches = 0;                           // batches completed
+    int batches = 0;                           // batches completed (and used)
+    int layout_batches = 0;                    // batches of the layout: opt.batches, or more when
+                                               // the time budget split them (batch_split)
     double seconds = 0.0;                      // wall time of trace_forward (max over ranks)
     double setup_seconds = 0.0;                // (all four: max over ranks) replication, voxel grid, empty space, buffers
-    double trace_seconds = 0.0;                // the rounds of batches (incl. per-round reductions)
+    double trace_seconds = 0.0;                // the rounds of batches (incl. per-round reductions,
+                                               // and round 0 dropped when the batches were split)
     double reduce_seconds = 0.0;               // counters, sparse tally reduction, halo exchange
     double replicated_gb = 0.0;                // per-rank memory of the replicated arrays
     double rel_error = 0.0;                    // relative standard error of diffuse_volume (all bands)
@@ -93,20 +109,40 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                             const std::vector<VolumeSource>& sources,
                             const MonteCarloOptions& opt, const ForwardSettings& settings = {});
 
-
 // Time to the earliest stop that applies, for the progress log: the photon count (the batches
-// left, at the rate so far), the time budget (what is left of it: the run stops at the last
-// round that fits), and the target relative error, estimated as rel_error * sqrt(done / k)
+// left, at the rate so far), the time budget (what is left of it: the run stops there, within a
+// chunk), and the target relative error, estimated as rel_error * sqrt(done / k)
 // after k batches (the standard error of a mean of k batch estimates falls as 1/sqrt(k));
 // the target is left out while rel_error is 0 (no diffuse light yet, no estimate).
-// done >= 1 of opt.batches batches took trace_seconds; elapsed: seconds since trace_forward
-// began (the time budget's clock). Not collective.
+// done >= 1 of opt.batches batches (the layout's batch count) took trace_seconds; elapsed:
+// seconds since trace_forward began (the time budget's clock). Not collective.
 struct StopEta {
     double seconds = 0.0;
     std::string until;  // "photon count", "time budget", "target error (estimated from 1/sqrt(batches))"
 };
 StopEta eta_to_stop(const MonteCarloOptions& opt, int done, double trace_seconds, double elapsed,
                     double rel_error);
+
+// Time-budget tuning (trace_forward). A budget run traces batches in chunks of about
+// kChunkSeconds (or 1/50 of the budget if less), on a grid of kChunkSteps steps per batch; the
+// pilot runs for kPilotSeconds (or 1/32 of the budget if less). A batch and a chunk have fixed
+// costs (folding the cells they lit into the tallies: ~2 ms a batch and ~2 ms a chunk on the
+// default cloud's 96x96x64 grid), hence kMinBatchSeconds.
+inline constexpr double kChunkSeconds = 0.05;
+inline constexpr std::int64_t kChunkSteps = std::int64_t{1} << 20;
+inline constexpr double kPilotSeconds = 1.0;
+inline constexpr int kMinBudgetBatches = 8;       // fewer batches fitting in the budget: split them
+inline constexpr double kMinBatchSeconds = 0.05;  // but not below this per batch
+
+// The factor by which a time-budget run splits its batches (a power of two; 1 keeps them),
+// from the pilot: a batch of the layout takes batch_seconds (a round, one batch per rank),
+// seconds_left of the budget remain, `batches` batches on `ranks` ranks. The layout is kept when
+// all its batches fit, or at least min(batches, kMinBudgetBatches) do. Otherwise the batches are
+// halved until ceil(batches / ranks) + 1 rounds fit (the user's batch count, and a round to
+// spare for the one the deadline cuts), while a batch still takes kMinBatchSeconds and
+// batches * split <= max_batches (every batch keeps a photon of every term). Not collective.
+int batch_split(double batch_seconds, double seconds_left, int batches, int ranks,
+                std::int64_t max_batches);
 
 // Photon count of each light: proportional to its power summed over bands (E0 A_projected),
 // at least `batches` per light that carries power, rounded by largest remainder so that the

@@ -65,6 +65,7 @@ public:
             {"collisions", r.collisions},
             {"tallied_segments", r.segments},
             {"batches", r.batches},
+            {"layout_batches", r.layout_batches},
             {"stop_reason", r.stop_reason},
             {"seconds", r.seconds},
             {"setup_seconds", r.setup_seconds},

@@ -4,7 +4,7 @@
 //
 //   | name                     | default | meaning                                          |
 //   | photons                  | 1e6     | photon paths over all light terms                |
-//   | time_budget              | 0 (off) | seconds; checked between rounds of batches       |
+//   | time_budget              | 0 (off) | seconds; kept to within a chunk (forward.h)      |
 //   | target_rel_error         | 0 (off) | stop when the total diffuse power is this exact  |
 //   | seed                     | 1       | same seed, same result on any rank count         |
 //   | batches                  | 32      | batch means for the standard errors              |

@@ -10,13 +10,6 @@
 
 namespace nimbus {
 
-namespace {
-double ratio(double num, double den) {
-    if (den > 0) return num / den;
-    return num == 0 ? 0.0 : std::numeric_limits<double>::infinity();
-}
-}  // namespace
-
 FieldError field_error(const std::vector<double>& a, const std::vector<double>& b,
                        const std::vector<double>& density, const std::vector<double>* stderr_b) {
     if (a.size() != b.size() || density.size() != b.size())
@@ -25,14 +18,14 @@ FieldError field_error(const std::vector<double>& a, const std::vector<double>& 
     if (stderr_b != nullptr && stderr_b->size() != b.size())
         throw Error("compare: the reference's standard error has a different size than its field");
     FieldError e;
-    double diff2 = 0.0, b2 = 0.0, max_diff = 0.0, max_b = 0.0, z2 = 0.0;
+    double diff2 = 0.0, b2 = 0.0, max_b = 0.0, z2 = 0.0;
     std::size_t nz = 0;
     for (std::size_t c = 0; c < b.size(); ++c) {
         if (!(density[c] > 0)) continue;
         const double d = a[c] - b[c];
         diff2 += d * d;
         b2 += b[c] * b[c];
-        max_diff = std::max(max_diff, std::abs(d));
+        e.max_abs = std::max(e.max_abs, std::abs(d));
         max_b = std::max(max_b, std::abs(b[c]));
         ++e.cells;
         if (stderr_b != nullptr && (*stderr_b)[c] > 0) {
@@ -42,9 +35,24 @@ FieldError field_error(const std::vector<double>& a, const std::vector<double>& 
         }
     }
     e.norm_b = std::sqrt(b2);
-    e.rel_l2 = ratio(std::sqrt(diff2), e.norm_b);
-    e.max_rel = ratio(max_diff, max_b);
+    e.abs_l2 = std::sqrt(diff2);
     if (stderr_b != nullptr) e.rms_z = nz > 0 ? std::sqrt(z2 / static_cast<double>(nz)) : 0.0;
+    const bool identical = e.cells > 0 && e.max_abs == 0.0;
+    if (identical) return e;  // every metric 0, also over a zero reference
+    constexpr double undefined = std::numeric_limits<double>::quiet_NaN();
+    if (e.cells == 0) {
+        e.rel_l2 = e.max_rel = undefined;
+        if (stderr_b != nullptr) e.rms_z = undefined;
+        e.undefined = "no cells with density";
+        return e;
+    }
+    if (stderr_b != nullptr && nz == 0) {
+        e.rms_z = undefined;
+        e.undefined = "the reference's standard error is zero on every cell compared";
+    }
+    e.rel_l2 = e.norm_b > 0 ? e.abs_l2 / e.norm_b : undefined;
+    e.max_rel = max_b > 0 ? e.max_abs / max_b : undefined;
+    if (!(e.norm_b > 0)) e.undefined = "the reference is zero on every cell compared";
     return e;
 }
 
@@ -56,7 +64,8 @@ double max_rel_difference(const std::vector<double>& a, const std::vector<double
         max_diff = std::max(max_diff, std::abs(a[c] - b[c]));
         max_b = std::max(max_b, std::abs(b[c]));
     }
-    return ratio(max_diff, max_b);
+    if (max_b > 0) return max_diff / max_b;
+    return max_diff == 0 ? 0.0 : std::numeric_limits<double>::infinity();
 }
 
 ImageError image_error(const std::vector<float>& a, const std::vector<float>& b) {
@@ -72,7 +81,12 @@ ImageError image_error(const std::vector<float>& a, const std::vector<float>& b)
         b2 += static_cast<double>(b[i]) * b[i];
     }
     e.rmse = e.pixels > 0 ? std::sqrt(diff2 / (3.0 * static_cast<double>(e.pixels))) : 0.0;
-    e.rel_error = ratio(std::sqrt(diff2), std::sqrt(b2));
+    if (b2 > 0 || diff2 == 0) {
+        e.rel_error = b2 > 0 ? std::sqrt(diff2) / std::sqrt(b2) : 0.0;
+    } else {
+        e.rel_error = std::numeric_limits<double>::quiet_NaN();
+        e.undefined = "the reference image is black";
+    }
     return e;
 }
 

@@ -8,24 +8,35 @@
 //                                                       agrees with b within b's noise
 //   image RMSE        sqrt(mean over pixels and RGB of (a - b)²), relative: ||a - b|| / ||b||
 //   same medium       max |rho_a - rho_b| / max |rho_b| over all cells <= kSameMediumTolerance
+//
+// A metric whose denominator is zero is undefined, not infinite: it is NaN (`nimbus compare`
+// prints "undefined" and writes JSON null) and `undefined` says why. Where a = b on every cell
+// compared the fields agree exactly and every metric is 0, also over a zero reference.
 #pragma once
 
 #include <cstddef>
+#include <string>
 #include <vector>
 
 namespace nimbus {
 
 struct FieldError {
-    double rel_l2 = 0.0;
-    double max_rel = 0.0;
-    double rms_z = -1.0;        // -1 when no standard error was given
+    double rel_l2 = 0.0;        // NaN when undefined
+    double max_rel = 0.0;       // NaN when undefined
+    double rms_z = -1.0;        // -1 when no standard error was given; NaN when undefined
     std::size_t cells = 0;      // cells compared (density > 0)
     double norm_b = 0.0;        // ||b||_2 over those cells
+    double abs_l2 = 0.0;        // ||a - b||_2 over those cells (the field's units)
+    double max_abs = 0.0;       // max |a - b| over those cells
+    std::string undefined;      // empty, or why the NaN metrics are undefined
 };
 
 // a, b: one value per cell; density selects the cells (> 0); stderr_b may be null or hold one
-// value per cell. Throws Error if the sizes differ. With ||b|| = 0 the relative errors are 0
-// when a = b there too and +inf otherwise.
+// value per cell. Throws Error if the sizes differ. Undefined metrics (unless a = b on every
+// cell compared): all of them without cells with density ("no cells with density"); rel_l2,
+// max_rel (and rms_z if no cell has s_b > 0) when b is 0 on every cell compared ("the reference
+// is zero on every cell compared"); rms_z alone when no cell has s_b > 0 ("the reference's
+// standard error is zero on every cell compared").
 FieldError field_error(const std::vector<double>& a, const std::vector<double>& b,
                        const std::vector<double>& density, const std::vector<double>* stderr_b);
 
@@ -39,11 +50,13 @@ inline constexpr double kSameMediumTolerance = 1e-6;
 
 struct ImageError {
     double rmse = 0.0;
-    double rel_error = 0.0;
+    double rel_error = 0.0;  // NaN when undefined
     std::size_t pixels = 0;
+    std::string undefined;  // empty, or why rel_error is undefined
 };
 
 // a, b: RGBA float images of the same size (alpha ignored). Throws Error if the sizes differ.
+// rel_error is undefined when b is black and a is not ("the reference image is black").
 ImageError image_error(const std::vector<float>& a_rgba, const std::vector<float>& b_rgba);
 
 }  // namespace nimbus

@@ -3,12 +3,16 @@
 // error of fields/fluence_diffuse/<band> over cells with density > 0, and the RMS of
 // (a - b) / stderr when B has fields/fluence_diffuse_stderr/<band> (a Monte Carlo reference);
 // image RMSE and relative error when both images are given. Warns (and flags in --json) when
-// the density fields of A and B differ: runs of different media. Rank 0 reads and prints; an
-// error is reported on every rank.
+// the density fields of A and B differ: runs of different media. A metric whose denominator is
+// zero (a zero reference field, a black reference image; src/analysis/compare.h) is printed as
+// "undefined" with a line saying why and giving the absolute difference; in --json it is null
+// and the band (or image) gains "undefined": the reason. Rank 0 reads and prints; an error is
+// reported on every rank.
 #include <fmt/format.h>
 #include <mpi.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -59,8 +63,11 @@ nlohmann::json compare_runs(const CompareArgs& args) {
         const bool with_stderr = has_dataset(args.b, err + "/" + band);
         if (with_stderr) stderr_b = read_field(args.b, err + "/" + band).values;
         const FieldError e = field_error(fa.values, fb.values, density.values, with_stderr ? &stderr_b : nullptr);
-        nlohmann::json j = {{"band", band}, {"rel_l2", e.rel_l2}, {"max_rel", e.max_rel}, {"cells", e.cells}};
+        // NaN (undefined) is written as null.
+        nlohmann::json j = {{"band", band},     {"rel_l2", e.rel_l2}, {"max_rel", e.max_rel},
+                            {"cells", e.cells}, {"abs_l2", e.abs_l2}, {"max_abs", e.max_abs}};
         if (with_stderr) j["rms_z"] = e.rms_z;
+        if (!e.undefined.empty()) j["undefined"] = e.undefined;
         out["bands"].push_back(j);
     }
     if (!args.image_a.empty() || !args.image_b.empty()) {
@@ -72,23 +79,44 @@ nlohmann::json compare_runs(const CompareArgs& args) {
                                     ib.width, ib.height));
         const ImageError e = image_error(ia.rgba, ib.rgba);
         out["image"] = {{"rmse", e.rmse}, {"rel_error", e.rel_error}, {"pixels", e.pixels}};
+        if (!e.undefined.empty()) out["image"]["undefined"] = e.undefined;
     }
     return out;
 }
 
+// A metric as the table shows it: "undefined" for NaN (compare.h).
+std::string metric(double v, const char* spec) {
+    return std::isnan(v) ? std::string("undefined") : fmt::format(fmt::runtime(spec), v);
+}
+
+void print(const std::string& line) { std::fputs(line.c_str(), stdout); }
+
 void print_table(const nlohmann::json& r) {
-    std::printf("%s", fmt::format("{} of {} against reference {}\n", r["field"].get<std::string>(),
-                                  r["a"].get<std::string>(), r["b"].get<std::string>()).c_str());
-    std::printf("%s", fmt::format("{:<10} {:>12} {:>12} {:>10} {:>10}\n", "band", "rel L2", "max rel", "RMS z", "cells").c_str());
+    print(fmt::format("{} of {} against reference {}\n", r["field"].get<std::string>(),
+                      r["a"].get<std::string>(), r["b"].get<std::string>()));
+    print(fmt::format("{:<10} {:>12} {:>12} {:>10} {:>10}\n", "band", "rel L2", "max rel", "RMS z",
+                      "cells"));
     for (const auto& b : r["bands"])
-        std::printf("%s", fmt::format("{:<10} {:>12.4e} {:>12.4e} {:>10} {:>10}\n", b["band"].get<std::string>(),
-                                      b["rel_l2"].get<double>(), b["max_rel"].get<double>(),
-                                      b.contains("rms_z") ? fmt::format("{:.3f}", b["rms_z"].get<double>()) : "-",
-                                      b["cells"].get<std::size_t>()).c_str());
-    if (r.contains("image"))
-        std::printf("%s", fmt::format("image: RMSE {:.4e}, relative error {:.4e} over {} pixels\n",
-                                      r["image"]["rmse"].get<double>(), r["image"]["rel_error"].get<double>(),
-                                      r["image"]["pixels"].get<std::size_t>()).c_str());
+        print(fmt::format("{:<10} {:>12} {:>12} {:>10} {:>10}\n", b["band"].get<std::string>(),
+                          metric(b["rel_l2"].get<double>(), "{:.4e}"),
+                          metric(b["max_rel"].get<double>(), "{:.4e}"),
+                          b.contains("rms_z") ? metric(b["rms_z"].get<double>(), "{:.3f}") : "-",
+                          b["cells"].get<std::size_t>()));
+    // Why a metric is undefined, and what can still be said: the absolute difference.
+    for (const auto& b : r["bands"])
+        if (b.contains("undefined"))
+            print(fmt::format("{}: undefined ({}); |a - b| over the {} cells: L2 {:.4e}, max {:.4e}\n",
+                              b["band"].get<std::string>(), b["undefined"].get<std::string>(),
+                              b["cells"].get<std::size_t>(), b["abs_l2"].get<double>(),
+                              b["max_abs"].get<double>()));
+    if (r.contains("image")) {
+        const auto& im = r["image"];
+        const std::string rel = im.contains("undefined")
+                                    ? fmt::format("undefined ({})", im["undefined"].get<std::string>())
+                                    : metric(im["rel_error"].get<double>(), "{:.4e}");
+        print(fmt::format("image: RMSE {:.4e}, relative error {} over {} pixels\n",
+                          im["rmse"].get<double>(), rel, im["pixels"].get<std::size_t>()));
+    }
 }
 
 }  // namespace

@@ -4,7 +4,9 @@
 # recomputed from the HDF5 files (numpy); known answers: a run against itself gives 0, and
 # against the same photons with every light and the background doubled 0.5 (1 the other way
 # round) for the field and the image; --field and a reference without a standard error (no
-# RMS z); clear errors. At np ranks: rank 0 prints once, an error exits non-zero.
+# RMS z); a reference whose band is zero: its relative errors and RMS z "undefined" (JSON null
+# with the reason, the absolute difference still given), exit 0; clear errors. At np ranks:
+# rank 0 prints once, an error exits non-zero.
 set -u
 nimbus=$1 mpiexec=$2 np=$3
 py=/usr/bin/python3
@@ -32,6 +34,17 @@ run a2 "${small[@]}" "${two[@]}" --set model.montecarlo.seed=1
 run single "${small[@]}" "${one[@]}" --set 'model.name="single"'  # no standard errors
 A=$tmp/a/nimbus.h5 B=$tmp/b/nimbus.h5 A2=$tmp/a2/nimbus.h5 S=$tmp/single/nimbus.h5
 IA=$tmp/a/nimbus.exr IA2=$tmp/a2/nimbus.exr
+# A's output with band g's diffuse fluence and its standard error zero (as a band without
+# light, or without scattering, gives): a reference on which g's relative errors are undefined.
+Z=$tmp/zero_g.h5
+"$py" - "$A" "$Z" <<'PY' || { echo "FAIL: making $Z"; exit 1; }
+import shutil, sys
+import h5py
+shutil.copy(sys.argv[1], sys.argv[2])
+with h5py.File(sys.argv[2], "r+") as f:
+    for name in ("fluence_diffuse", "fluence_diffuse_stderr"):
+        f[f"fields/{name}/g"][...] = 0
+PY
 
 # The table: one header (rank 0 only), a row per band, the image line.
 out=$(nim compare "$A" "$B" --image-a "$IA" --image-b "$IA2" 2>&1); code=$?
@@ -47,6 +60,15 @@ check "table image line" bash -c 'echo "$1" | grep -Eq "^image: RMSE [0-9.]+e[-+
 out=$(nim compare "$A" "$S" --field fluence_reduced 2>&1)
 check "no stderr: RMS z '-'" bash -c 'echo "$1" | grep -Eq "^r +[0-9.]+e[-+][0-9]+ +[0-9.]+e[-+][0-9]+ +- +[0-9]+$"' _ "$out"
 
+# Against the zero band: exit 0, "undefined" in its row and a line saying why with the absolute
+# difference; the other bands (A against itself) 0; no inf or nan anywhere.
+out=$(nim compare "$A" "$Z" 2>&1); code=$?
+check "zero reference: exits 0 (exit $code)" [ $code -eq 0 ]
+check "zero reference: g undefined" bash -c 'echo "$1" | grep -Eq "^g +undefined +undefined +undefined +[0-9]+$"' _ "$out"
+check "zero reference: r defined" bash -c 'echo "$1" | grep -Eq "^r +0\.0000e\+00 +0\.0000e\+00 +0\.000 +[0-9]+$"' _ "$out"
+check "zero reference: why, and |a - b|" bash -c 'echo "$1" | grep -Eq "^g: undefined \(the reference is zero on every cell compared\); \|a - b\| over the [0-9]+ cells: L2 [1-9][0-9.]*e[-+][0-9]+, max [1-9][0-9.]*e[-+][0-9]+$"' _ "$out"
+check "zero reference: no inf or nan" bash -c '! echo "$1" | grep -Eqiw "inf|nan"' _ "$out"
+
 # JSON: each comparison to a file, then checked in one Python run.
 json() {  # json <name> compare-args...
   local name=$1; shift
@@ -57,6 +79,8 @@ json aa "$A" "$A" --image-a "$IA" --image-b "$IA"
 json a_a2 "$A" "$A2" --image-a "$IA" --image-b "$IA2"
 json a2_a "$A2" "$A" --image-a "$IA2" --image-b "$IA"
 json a_single "$A" "$S" --field fluence_reduced
+json a_zero "$A" "$Z"
+json zero_zero "$Z" "$Z"
 results=$("$py" - "$tmp" <<'PY'
 import json, sys
 import h5py, numpy as np
@@ -66,9 +90,11 @@ def check(what, cond):
     global ok, bad
     if cond: ok += 1
     else: bad += 1; print("FAIL:", what)
+def not_json(token):
+    raise ValueError(f"not JSON: {token}")
 def load(name):
     with open(f"{tmp}/{name}.json") as f:
-        return json.load(f)  # fails the test if not JSON
+        return json.load(f, parse_constant=not_json)  # fails the test if not JSON (NaN, Infinity)
 def bands(r): return {b["band"]: b for b in r["bands"]}
 def close(x, y, rel=1e-12): return abs(x - y) <= rel * max(abs(x), abs(y), 1e-300)
 
@@ -87,6 +113,8 @@ with h5py.File(f"{tmp}/a/nimbus.h5") as fa, h5py.File(f"{tmp}/b/nimbus.h5") as f
         z = (a - b)[s > 0] / s[s > 0]
         check(f"ab {band}: rms_z {j['rms_z']}", close(j["rms_z"], np.sqrt(np.mean(z * z))))
         check(f"ab {band}: 0 < rel_l2 < 1", 0 < j["rel_l2"] < 1)
+        check(f"ab {band}: abs_l2, max_abs", close(j["abs_l2"], np.linalg.norm(a - b)) and close(j["max_abs"], np.abs(a - b).max()))
+        check(f"ab {band}: defined", "undefined" not in j)
 
 # A against itself: all zero.
 aa = load("aa")
@@ -113,6 +141,23 @@ r = load("a_single")
 check("a_single: field fluence_reduced", r["field"] == "fluence_reduced" and len(r["bands"]) == 3)
 for band, j in bands(r).items():
     check(f"a_single {band}: no rms_z, equal", "rms_z" not in j and j["rel_l2"] < 1e-6)
+
+# A against the zero band: g's relative errors and RMS z null with the reason, its absolute
+# difference the norm of A's g; r and b (A against itself) 0. Z against itself: all 0.
+z = bands(load("a_zero"))
+with h5py.File(f"{tmp}/a/nimbus.h5") as fa:
+    rho = fa["fields/density"][...].astype(float)
+    a = fa["fields/fluence_diffuse/g"][...].astype(float)[rho > 0]
+g = z["g"]
+check(f"a_zero g: null {g}", g["rel_l2"] is None and g["max_rel"] is None and g["rms_z"] is None)
+check(f"a_zero g: reason {g.get('undefined')}", g.get("undefined") == "the reference is zero on every cell compared")
+check(f"a_zero g: abs_l2 {g['abs_l2']}", g["abs_l2"] > 0 and close(g["abs_l2"], np.linalg.norm(a)))
+check(f"a_zero g: max_abs {g['max_abs']}", close(g["max_abs"], np.abs(a).max()))
+check("a_zero g: cells", g["cells"] == int((rho > 0).sum()))
+for band in "rb":
+    check(f"a_zero {band}: 0, defined", z[band]["rel_l2"] == 0 and z[band]["rms_z"] == 0 and "undefined" not in z[band])
+for band, j in bands(load("zero_zero")).items():
+    check(f"zero_zero {band}: 0, defined", j["rel_l2"] == 0 and j["max_rel"] == 0 and j["rms_z"] == 0 and "undefined" not in j)
 
 # A file on another grid, for the error below.
 with h5py.File(f"{tmp}/coarse.h5", "w") as f:

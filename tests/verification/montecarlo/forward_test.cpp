@@ -396,9 +396,9 @@ TEST(Forward, StopsAtTargetRelativeError) {
 }
 
 // model.montecarlo.time_budget with far more photons than fit (the whole run, 8 x 10^7 photons,
-// would take minutes): the run stops between rounds of batches, before the round that would
-// overrun the budget, so within the budget plus a margin and after most of it, with
-// stop_reason "time_budget". The result is that of the batches it completed: equal to
+// would take minutes) in short batches (the pilot keeps them): the run stops at the budget,
+// dropping the batches the deadline cut, so within the budget plus a margin and after most of
+// it, with stop_reason "time_budget". The result is that of the batches it completed: equal to
 // round-off to a run of exactly those photons without a budget (so normalized like any run),
 // with the energy balance closed.
 TEST(Forward, StopsAtTheTimeBudget) {
@@ -411,6 +411,7 @@ TEST(Forward, StopsAtTheTimeBudget) {
     o.time_budget = kBudget;
     const ForwardResult r = trace_forward(slab.d, slab.m, {beam(0.8)}, o);
     EXPECT_EQ(r.stop_reason, "time_budget");
+    EXPECT_EQ(r.layout_batches, kBatches);
     EXPECT_GE(r.batches, 2);
     EXPECT_LT(r.batches, kBatches / 4);
     EXPECT_EQ(r.photons, r.batches * kPerBatch);
@@ -437,6 +438,98 @@ TEST(Forward, StopsAtTheTimeBudget) {
     for (int f = 0; f < 6; ++f) escaped += c[escaped_xlo + f];
     EXPECT_NEAR(c[absorbed] + escaped - c[roulette_net], c[incident], 1e-12 * c[incident]);
     EXPECT_NEAR(c[absorbed] + escaped, c[incident], 1e-3 * c[incident]);
+}
+
+// Batches shorter than a chunk (1.5 ms against 6 ms: each is traced in one piece): the budget
+// is still kept, the deadline checked after every round as well as within a batch.
+TEST(Forward, StopsAtTheTimeBudgetWithBatchesShorterThanAChunk) {
+    constexpr int kBatches = 4096;
+    constexpr std::int64_t kPerBatch = 1000;
+    constexpr double kBudget = 0.3;  // s; all 4096 batches would take ~6 s
+    Slab slab(MPI_COMM_WORLD, 2.0, 0.99, 0.85);
+    MonteCarloOptions o = options(kBatches * kPerBatch);
+    o.batches = kBatches;
+    o.time_budget = kBudget;
+    const ForwardResult r = trace_forward(slab.d, slab.m, {beam(0.8)}, o);
+    EXPECT_EQ(r.stop_reason, "time_budget");
+    EXPECT_EQ(r.layout_batches, kBatches);
+    EXPECT_LT(r.batches, kBatches / 4);
+    EXPECT_EQ(r.photons, r.batches * kPerBatch);
+    EXPECT_LT(r.seconds, kBudget + 0.2);
+    EXPECT_GT(r.seconds, 0.75 * kBudget);
+}
+
+// A photon count whose first batch alone takes far longer than the budget (32 batches of 2^22
+// photons, ~6 s each on one core, against a 0.6 s budget; before the pilot the first round
+// always completed, 6 s on 2 ranks, 12 s on 1): the pilot splits the batches by a power of two,
+// and the run stops within the budget plus a small margin. What it keeps is a prefix of the
+// split layout, so a budget-free run of the photons and batches it reports traces the same
+// photons: the same fields, counters and standard errors to round-off, the same collisions.
+TEST(Forward, TimeBudgetHoldsWhenOneBatchIsFarLonger) {
+    constexpr int kBatches = 32;
+    constexpr std::int64_t kPerBatch = std::int64_t{1} << 22;
+    constexpr double kBudget = 0.6;  // s
+    constexpr double kMargin =
+        0.2;  // s: one chunk (12 ms here), the final reduction, a busy machine
+    Slab slab(MPI_COMM_WORLD, 2.0, 0.99, 0.85);
+    MonteCarloOptions o = options(kBatches * kPerBatch);
+    o.batches = kBatches;
+    o.time_budget = kBudget;
+    const ForwardResult r = trace_forward(slab.d, slab.m, {beam(0.8)}, o);
+    EXPECT_EQ(r.stop_reason, "time_budget");
+    EXPECT_LT(r.seconds, kBudget + kMargin);
+    EXPECT_GT(r.seconds, 0.75 * kBudget);
+    const int split = r.layout_batches / kBatches;
+    EXPECT_EQ(r.layout_batches, split * kBatches);
+    EXPECT_GT(split, 1);
+    EXPECT_EQ(split & (split - 1), 0);  // a power of two
+    const std::int64_t per_batch = kPerBatch / split;
+    EXPECT_GE(r.batches, 2);
+    EXPECT_EQ(r.photons, r.batches * per_batch);
+    EXPECT_LT(r.photons, kPerBatch);  // less than one batch of the layout asked for
+    if (test::world_rank() == 0)
+        std::printf(
+            "    budget %.2f s, %lld photons asked: %d batches of %lld photons (split %d), %.3f "
+            "s\n",
+            kBudget, static_cast<long long>(o.photons), r.batches,
+            static_cast<long long>(per_batch), split, r.seconds);
+
+    MonteCarloOptions same = options(r.photons);
+    same.batches = r.batches;
+    const ForwardResult e = trace_forward(slab.d, slab.m, {beam(0.8)}, same);
+    EXPECT_EQ(e.stop_reason, "photons");
+    EXPECT_EQ(e.layout_batches, r.batches);
+    EXPECT_EQ(e.photons, r.photons);
+    EXPECT_EQ(e.collisions, r.collisions);
+    expect_same_fields(r, e, slab.d.local());
+    const Counters& c = r.counters[0];
+    for (int q = 0; q < ncounters; ++q) {
+        EXPECT_NEAR(c[q], e.counters[0][q], 1e-12 * c[incident]);
+        EXPECT_NEAR(r.counters_stderr[0][q], e.counters_stderr[0][q], 1e-12 * c[incident]);
+    }
+    EXPECT_NEAR(r.rel_error, e.rel_error, 1e-12);
+}
+
+// The pilot's choice (batch_split): keep the batches when all or enough of them fit; otherwise
+// halve them until the batch count asked for (and a round to spare) fits, but not below
+// kMinBatchSeconds a batch, nor past a photon of every term per batch.
+TEST(Forward, BatchSplitFitsTheBatchesAskedForInTheBudget) {
+    constexpr std::int64_t kAny = std::int64_t{1} << 30;
+    EXPECT_EQ(batch_split(0.1, 10.0, 32, 2, kAny), 1);  // all 16 rounds fit
+    EXPECT_EQ(batch_split(0.03, 0.48, 4096, 1, kAny),
+              1);  // 16 of 4096 fit: enough (StopsAtTheTimeBudget)
+    EXPECT_EQ(batch_split(0.0, 1.0, 32, 1, kAny), 1);  // no estimate (a rank with nothing to trace)
+    // 8 s batches, 20 s left, 1 rank: 33 rounds need batches of 1/13.2; by 16, 40 rounds fit
+    EXPECT_EQ(batch_split(8.0, 20.0, 32, 1, kAny), 16);
+    EXPECT_EQ(batch_split(8.0, 20.0, 32, 4, kAny), 1);  // 4 ranks: 2 rounds, 8 batches fit: enough
+    EXPECT_EQ(batch_split(8.0, 12.0, 32, 4, kAny),
+              8);  // 1 round fits; 9 rounds need 1/6; by 8, 12 fit
+    // 2 s batches, 0.95 s left: 33 rounds would need 1/70, but 2 s / 64 = 31 ms < kMinBatchSeconds
+    EXPECT_EQ(batch_split(2.0, 0.95, 32, 1, kAny), 32);
+    EXPECT_EQ(batch_split(1.0, -0.5, 32, 1, kAny), 16);  // the budget is gone: the shortest batches
+    EXPECT_EQ(batch_split(8.0, 20.0, 32, 1, 100),
+              2);  // 64 batches <= 100 photons of a term; 128 not
+    EXPECT_EQ(batch_split(1.0, 2.5, 4, 1, kAny), 2);  // 2 of 4 fit (< 4): 5 rounds of 0.5 s
 }
 
 // The progress line's ETA is the time to the earliest stop that applies: the photon count, what
