@@ -395,6 +395,33 @@ TEST(Forward, StopsAtTargetRelativeError) {
     EXPECT_LT(r.rel_error, 0.05);
 }
 
+// A run on the test slab of `batches` batches of `per_batch` photons under time_budget `budget`.
+ForwardResult budget_run(const Slab& slab, int batches, std::int64_t per_batch, double budget) {
+    MonteCarloOptions o = options(batches * per_batch);
+    o.batches = batches;
+    o.time_budget = budget;
+    return trace_forward(slab.d, slab.m, {beam(0.8)}, o);
+}
+
+// r (a budget run) equals a budget-free run of the photons and batches it reports: the same
+// photons, so the same fields, counters and standard errors to round-off, the same collisions.
+void expect_equals_budget_free_run(const Slab& slab, const ForwardResult& r) {
+    MonteCarloOptions same = options(r.photons);
+    same.batches = r.batches;
+    const ForwardResult e = trace_forward(slab.d, slab.m, {beam(0.8)}, same);
+    EXPECT_EQ(e.stop_reason, "photons");
+    EXPECT_EQ(e.layout_batches, r.batches);
+    EXPECT_EQ(e.photons, r.photons);
+    EXPECT_EQ(e.collisions, r.collisions);
+    expect_same_fields(r, e, slab.d.local());
+    const Counters& c = r.counters[0];
+    for (int q = 0; q < ncounters; ++q) {
+        EXPECT_NEAR(c[q], e.counters[0][q], 1e-12 * c[incident]);
+        EXPECT_NEAR(r.counters_stderr[0][q], e.counters_stderr[0][q], 1e-12 * c[incident]);
+    }
+    EXPECT_NEAR(r.rel_error, e.rel_error, 1e-12);
+}
+
 // model.montecarlo.time_budget with far more photons than fit (the whole run, 8 x 10^7 photons,
 // would take minutes) in short batches (the pilot keeps them): the run stops at the budget,
 // dropping the batches the deadline cut, so within the budget plus a margin and after most of
@@ -406,10 +433,7 @@ TEST(Forward, StopsAtTheTimeBudget) {
     constexpr std::int64_t kPerBatch = 20000;  // ~30 ms per batch on one core
     constexpr double kBudget = 0.5;            // s
     Slab slab(MPI_COMM_WORLD, 2.0, 0.99, 0.85);
-    MonteCarloOptions o = options(kBatches * kPerBatch);
-    o.batches = kBatches;
-    o.time_budget = kBudget;
-    const ForwardResult r = trace_forward(slab.d, slab.m, {beam(0.8)}, o);
+    const ForwardResult r = budget_run(slab, kBatches, kPerBatch, kBudget);
     EXPECT_EQ(r.stop_reason, "time_budget");
     EXPECT_EQ(r.layout_batches, kBatches);
     EXPECT_GE(r.batches, 2);
@@ -421,18 +445,8 @@ TEST(Forward, StopsAtTheTimeBudget) {
         std::printf("    budget %.2f s: %d batches, %.3f s (tracing %.3f s)\n", kBudget, r.batches, r.seconds,
                     r.trace_seconds);
 
-    MonteCarloOptions same = options(r.batches * kPerBatch);
-    same.batches = r.batches;
-    const ForwardResult e = trace_forward(slab.d, slab.m, {beam(0.8)}, same);
-    EXPECT_EQ(e.stop_reason, "photons");
-    EXPECT_EQ(e.photons, r.photons);
-    EXPECT_EQ(e.collisions, r.collisions);
-    expect_same_fields(r, e, slab.d.local());
+    expect_equals_budget_free_run(slab, r);
     const Counters& c = r.counters[0];
-    for (int q = 0; q < ncounters; ++q) {
-        EXPECT_NEAR(c[q], e.counters[0][q], 1e-12 * c[incident]);
-        EXPECT_NEAR(r.counters_stderr[0][q], e.counters_stderr[0][q], 1e-12 * c[incident]);
-    }
     EXPECT_NEAR(c[incident], 0.8 * 64.0, 1e-9);
     double escaped = c[escaped_direct];
     for (int f = 0; f < 6; ++f) escaped += c[escaped_xlo + f];
@@ -447,10 +461,7 @@ TEST(Forward, StopsAtTheTimeBudgetWithBatchesShorterThanAChunk) {
     constexpr std::int64_t kPerBatch = 1000;
     constexpr double kBudget = 0.3;  // s; all 4096 batches would take ~6 s
     Slab slab(MPI_COMM_WORLD, 2.0, 0.99, 0.85);
-    MonteCarloOptions o = options(kBatches * kPerBatch);
-    o.batches = kBatches;
-    o.time_budget = kBudget;
-    const ForwardResult r = trace_forward(slab.d, slab.m, {beam(0.8)}, o);
+    const ForwardResult r = budget_run(slab, kBatches, kPerBatch, kBudget);
     EXPECT_EQ(r.stop_reason, "time_budget");
     EXPECT_EQ(r.layout_batches, kBatches);
     EXPECT_LT(r.batches, kBatches / 4);
@@ -472,10 +483,7 @@ TEST(Forward, TimeBudgetHoldsWhenOneBatchIsFarLonger) {
     constexpr double kMargin =
         0.2;  // s: one chunk (12 ms here), the final reduction, a busy machine
     Slab slab(MPI_COMM_WORLD, 2.0, 0.99, 0.85);
-    MonteCarloOptions o = options(kBatches * kPerBatch);
-    o.batches = kBatches;
-    o.time_budget = kBudget;
-    const ForwardResult r = trace_forward(slab.d, slab.m, {beam(0.8)}, o);
+    const ForwardResult r = budget_run(slab, kBatches, kPerBatch, kBudget);
     EXPECT_EQ(r.stop_reason, "time_budget");
     EXPECT_LT(r.seconds, kBudget + kMargin);
     EXPECT_GT(r.seconds, 0.75 * kBudget);
@@ -491,23 +499,9 @@ TEST(Forward, TimeBudgetHoldsWhenOneBatchIsFarLonger) {
         std::printf(
             "    budget %.2f s, %lld photons asked: %d batches of %lld photons (split %d), %.3f "
             "s\n",
-            kBudget, static_cast<long long>(o.photons), r.batches,
+            kBudget, static_cast<long long>(kBatches * kPerBatch), r.batches,
             static_cast<long long>(per_batch), split, r.seconds);
-
-    MonteCarloOptions same = options(r.photons);
-    same.batches = r.batches;
-    const ForwardResult e = trace_forward(slab.d, slab.m, {beam(0.8)}, same);
-    EXPECT_EQ(e.stop_reason, "photons");
-    EXPECT_EQ(e.layout_batches, r.batches);
-    EXPECT_EQ(e.photons, r.photons);
-    EXPECT_EQ(e.collisions, r.collisions);
-    expect_same_fields(r, e, slab.d.local());
-    const Counters& c = r.counters[0];
-    for (int q = 0; q < ncounters; ++q) {
-        EXPECT_NEAR(c[q], e.counters[0][q], 1e-12 * c[incident]);
-        EXPECT_NEAR(r.counters_stderr[0][q], e.counters_stderr[0][q], 1e-12 * c[incident]);
-    }
-    EXPECT_NEAR(r.rel_error, e.rel_error, 1e-12);
+    expect_equals_budget_free_run(slab, r);
 }
 
 // The pilot's choice (batch_split): keep the batches when all or enough of them fit; otherwise
