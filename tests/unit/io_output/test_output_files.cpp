@@ -110,11 +110,20 @@ TEST(OutputFiles, FailedRenameRollsBackTheWholeSet) {
     }
 }
 
+// What each HDF5 writer test starts from: a scratch folder, a grid split over all ranks, and the
+// path of the file to write in the folder.
+struct WriterScene {
+    ScratchDir dir;
+    Grid grid;
+    Decomposition d;
+    std::string path;
+    WriterScene(const std::string& folder, const Grid& g, const std::string& file)
+        : dir(folder), grid(g), d(MPI_COMM_WORLD, g.n), path(dir.file(file)) {}
+};
+
 TEST(Hdf5Writer, NothingFinalUntilTheSetCommits) {
-    ScratchDir dir("outfiles_h5");
-    const Grid grid = test::sample_grid();
-    Decomposition d(MPI_COMM_WORLD, grid.n);
-    const std::string path = dir.file("run.h5");
+    WriterScene s("outfiles_h5", test::sample_grid(), "run.h5");
+    auto& [dir, grid, d, path] = s;
     OutputFiles files(MPI_COMM_WORLD);
     {
         Hdf5Writer w(d, grid, path, files);
@@ -144,10 +153,8 @@ Grid big_grid() {
 }
 
 TEST(Hdf5Writer, OutOfSpaceInAFieldFailsOnEveryRankAndLeavesNothing) {
-    ScratchDir dir("outfiles_full_field");
-    const Grid grid = big_grid();
-    Decomposition d(MPI_COMM_WORLD, grid.n);
-    const std::string path = dir.file("full.h5");
+    WriterScene s("outfiles_full_field", big_grid(), "full.h5");
+    auto& [dir, grid, d, path] = s;
     {
         OutputFiles files(MPI_COMM_WORLD);
         FileSizeLimit limit(96 * 1024);
@@ -171,10 +178,8 @@ TEST(Hdf5Writer, OutOfSpaceInAFieldFailsOnEveryRankAndLeavesNothing) {
 }
 
 TEST(Hdf5Writer, OutOfSpaceInAnAttributeFailsOnEveryRankAndLeavesNothing) {
-    ScratchDir dir("outfiles_full_attr");
-    const Grid grid = test::sample_grid();
-    Decomposition d(MPI_COMM_WORLD, grid.n);
-    const std::string path = dir.file("full.h5");
+    WriterScene s("outfiles_full_attr", test::sample_grid(), "full.h5");
+    auto& [dir, grid, d, path] = s;
     {
         OutputFiles files(MPI_COMM_WORLD);
         FileSizeLimit limit(512 * 1024);
