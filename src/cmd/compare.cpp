@@ -124,8 +124,14 @@ void print_table(const nlohmann::json& r) {
 void add_compare_command(CLI::App& app) {
     auto args = std::make_shared<CompareArgs>();
     CLI::App* cmd = app.add_subcommand("compare", "error of run A against reference run B (HDF5 outputs)");
-    cmd->add_option("A", args->a, "the run to assess (nimbus.h5)")->required()->check(CLI::ExistingFile);
-    cmd->add_option("B", args->b, "the reference run (nimbus.h5), e.g. Monte Carlo")->required()->check(CLI::ExistingFile);
+    cmd->add_option("A", args->a,
+                    "the run to assess: the HDF5 file nimbus run wrote (<scene>.h5; nimbus.h5 for the "
+                    "built-in scene)")
+        ->required()
+        ->check(CLI::ExistingFile);
+    cmd->add_option("B", args->b, "the reference run's HDF5 file, e.g. a Monte Carlo run's")
+        ->required()
+        ->check(CLI::ExistingFile);
     cmd->add_flag("--json", args->json, "print JSON instead of a table");
     cmd->add_option("--field", args->field, "per-band field to compare: fluence_diffuse | fluence_reduced | "
                                              "transmittance_sun")
