@@ -118,8 +118,14 @@ ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, con
         same_sigma[b] = m.bands[b].sigma_t == m.bands[b - 1].sigma_t;
     }
 
+    // A ghost cell across a periodic face is the cell it wraps to: its source cell (the
+    // sources' boxes are in domain cells 0..n-1).
+    const Int3 n = d.global().hi;
+    auto wrap = [&](int a, int c) { return d.periodic(a) ? (c % n[a] + n[a]) % n[a] : c; };
+
     for_each_cell(need, [&](int i, int j, int k) {
         const double rho = m.rho(i, j, k);
+        const Int3 src_cell{wrap(0, i), wrap(1, j), wrap(2, k)};
         float* cell = &v.data(i, j, k);
         cell[0] = static_cast<float>(rho);
         if (!(rho > 0.0) || !(emits || scatters)) return;  // J = 0 where there is no medium
@@ -157,7 +163,7 @@ ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, con
                     J[bb] += diffuse_inscatter(in.diffuse.fluence[bb](i, j, k), o.g, flux, F, w_out);
                 }
                 J[bb] *= rho * o.sigma_t * o.albedo;
-                if (!sources.empty()) J[bb] += emission_radiance(emitted_power(sources, m.rho, b, i, j, k));
+                if (!sources.empty()) J[bb] += emission_radiance(emitted_power(sources, m.rho, b, i, j, k, src_cell));
             }
         }
         for (int b = 0; b < nb; ++b) cell[1 + b] = static_cast<float>(J[static_cast<size_t>(b)]);

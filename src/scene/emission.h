@@ -67,14 +67,21 @@ inline std::vector<VolumeSource> volume_sources(const Scene& scene) {
 }
 
 // Emitted power density (W/m³, all directions) of cell (i, j, k) in band b: the sum over the
-// sources covering it, 0 in empty cells. rho must hold (i, j, k).
+// sources covering it, 0 in empty cells. rho must hold (i, j, k). A ghost cell across a
+// periodic face passes the domain cell it wraps to as `domain_cell` (the sources' boxes are in
+// domain cells); otherwise it is (i, j, k).
 inline double emitted_power(const std::vector<VolumeSource>& sources, const Field<double>& rho,
-                            int b, int i, int j, int k) {
+                            int b, int i, int j, int k, const Int3& domain_cell) {
     if (!(rho(i, j, k) > 0)) return 0.0;
     double p = 0.0;
     for (const VolumeSource& s : sources)
-        if (s.cells.contains(i, j, k)) p += s.power[static_cast<size_t>(b)];
+        if (s.cells.contains(domain_cell[0], domain_cell[1], domain_cell[2])) p += s.power[static_cast<size_t>(b)];
     return p;
+}
+
+inline double emitted_power(const std::vector<VolumeSource>& sources, const Field<double>& rho,
+                            int b, int i, int j, int k) {
+    return emitted_power(sources, rho, b, i, j, k, {i, j, k});
 }
 
 // Collective over d.comm(). Throws Error on every rank if a source with non-zero power covers

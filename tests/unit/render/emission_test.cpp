@@ -3,7 +3,8 @@
 //  - Alone (no lights, no diffuse light) on a medium of density rho0 with holes, a source over
 //    the whole domain gives J = q where rho = rho0 and 0 in the holes: exactly the particle
 //    model (emission_absorption, J = C kappa, analytic_modes_test.cpp) with C_b = q_b / kappa_b,
-//    so the two images agree to float rounding, on 1 and 2 ranks.
+//    so the two images agree to float rounding, on 1 and 2 ranks; also with periodic x/y, where
+//    the ghost cells across the periodic faces must emit like the cells they wrap to.
 //  - With the sun and a diffuse field, the image is the sum of the images of the light alone
 //    and of the source alone (background 0): the emission adds to the scattered light.
 #include <gtest/gtest.h>
@@ -40,7 +41,11 @@ double holey(const Int3& n, int i, int j, int k) {
     return (i * 7 + j * 3 + k) % 5 == 0 ? 0.0 : kRho0;
 }
 
-TEST(RenderEmission, VolumeSourceEqualsTheParticleModel) {
+// A source over the whole domain on the holey medium, rendered in the scattering mode without
+// lights, against the particle model with C_b = q_b / kappa_b: equal to float rounding. With
+// periodic x/y the ghost cells across those faces are wrapped domain cells, and they emit too
+// (a ghost that did not would halve J in the half cell next to each periodic face).
+void expect_source_equals_particle_model(std::array<bool, 3> periodic) {
     const Grid g = grid16();
     Scene src = base_scene(g);
     src.render.mode = RenderMode::scattering;
@@ -55,7 +60,10 @@ TEST(RenderEmission, VolumeSourceEqualsTheParticleModel) {
     for (size_t b = 0; b < 3; ++b)
         particle.render.emission_color.push_back(power[b] / (4 * std::numbers::pi) / (kRho0 * src.bands[b].sigma_t));
 
-    auto w = test::make_world(MPI_COMM_WORLD, g, src, [&](int i, int j, int k) { return holey(g.n, i, j, k); });
+    auto wrap = [&](int a, int c) { return periodic[static_cast<size_t>(a)] ? (c + g.n[a]) % g.n[a] : c; };
+    auto w = test::make_world(
+        MPI_COMM_WORLD, g, src, [&](int i, int j, int k) { return holey(g.n, wrap(0, i), wrap(1, j), wrap(2, k)); },
+        {0, 0, 0}, periodic);
     const Image a = test::render(src, w), b = test::render(particle, w);
     if (test::world_rank() != 0) return;
     int glowing = 0;
@@ -69,6 +77,10 @@ TEST(RenderEmission, VolumeSourceEqualsTheParticleModel) {
             }
     EXPECT_GT(glowing, 200);  // the emission shows
 }
+
+TEST(RenderEmission, VolumeSourceEqualsTheParticleModel) { expect_source_equals_particle_model({false, false, false}); }
+
+TEST(RenderEmission, PeriodicGhostCellsEmit) { expect_source_equals_particle_model({true, true, false}); }
 
 TEST(RenderEmission, SourceAddsToTheScatteredLight) {
     const Grid g = grid16();

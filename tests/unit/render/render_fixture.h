@@ -49,11 +49,12 @@ Field<double> make_field(const Decomposition& d, Fn&& f, int ncomp = 1) {
 }
 
 // rho(i, j, k) on grid g, bands from the scene; no lights, zero diffuse field.
+// periodic: the decomposition's periodic axes (rho must then be periodic along them too).
 template <class Rho>
 RenderWorld make_world(MPI_Comm comm, const Grid& g, const Scene& scene, Rho&& rho,
-                       const Int3& proc_dims = {0, 0, 0}) {
+                       const Int3& proc_dims = {0, 0, 0}, std::array<bool, 3> periodic = {false, false, false}) {
     RenderWorld w;
-    w.d = std::make_unique<Decomposition>(comm, g.n, proc_dims);
+    w.d = std::make_unique<Decomposition>(comm, g.n, proc_dims, periodic);
     w.medium.grid = g;
     w.medium.bands = scene.bands;
     w.medium.rho = make_field(*w.d, [&](int i, int j, int k, int) { return rho(i, j, k); });
