@@ -39,6 +39,17 @@ void validate_sources(const Scene& scene) {
                                 src.lo[a], src.hi[a]));
         }
         require_bands(src.power, scene.nbands(), (key + ".power").c_str());
+        // Cells without extinction are empty space to the Monte Carlo walk and to diffusion
+        // (no segment is tallied there, D is unbounded), so emission into a band with
+        // sigma_t = 0 would be kept by dom and lpm and lost by those: refused for every model.
+        for (int b = 0; b < scene.nbands(); ++b) {
+            const auto bb = static_cast<size_t>(b);
+            const double p = src.power.size() == 1 ? src.power[0] : src.power[bb];
+            require(!(p > 0 && scene.bands[bb].sigma_t == 0),
+                    fmt::format("{}.power: band '{}' emits but its sigma_t is 0 (a medium without "
+                                "extinction); give the band sigma_t > 0 or the source power 0 in it",
+                                key, scene.bands[bb].name));
+        }
         require(!source_cells(src, grid).empty(),
                 fmt::format("{}.lo/hi cover no cell centre of the grid (domain [0, {}] x [0, {}] x [0, {}] in {})",
                             key, grid.n[0] * grid.cell_size, grid.n[1] * grid.cell_size,

@@ -174,6 +174,13 @@ TEST(SceneErrors, Sources) {
                  {"sources[0].hi is required"});
     expect_error(edit("name = \"single\"", dom + "[[sources]]\nlo = [0, 0, 0]\nhi = [1, 1, 1]\npowr = 1"), "powr",
                  {"sources[0].powr: unknown key", "did you mean 'power'?"});
+    // Emission into a band without extinction: lost by montecarlo and diffusion, kept by dom and
+    // lpm, so refused; power 0 in that band is fine.
+    const std::string clear_band = "[[optics]]\nname = \"clear\"\nsigma_t = 0.0\n";
+    expect_error(edit("name = \"single\"", dom + clear_band + "[[sources]]\nlo = [0, 0, 0]\nhi = [1, 1, 1]\npower = [1, 2]"),
+                 "power = [1, 2]", {"sources[0].power: band 'clear' emits but its sigma_t is 0"});
+    EXPECT_NO_THROW(load_scene_string(
+        edit("name = \"single\"", dom + clear_band + "[[sources]]\nlo = [0, 0, 0]\nhi = [1, 1, 1]\npower = [1, 0]"), "ok.toml"));
 }
 
 TEST(SceneErrors, WrongType) {
