@@ -143,7 +143,7 @@ def main():
             try:
                 wall, report = run_nimbus(args, scene, args.set + sets, run_dir)
             except RuntimeError:
-                # A model that refuses the scene (e.g. volume sources outside dom/montecarlo) is
+                # A model that refuses the scene (e.g. volume sources with single or psf) is
                 # skipped with its reason; any other failure stops the study.
                 with open(os.path.join(run_dir, "log.txt")) as log:
                     refusal = [l.strip() for l in log if "does not support" in l]

@@ -114,8 +114,9 @@ void info(const RunOptions& opts) {
                                    : "optically thick: multiple scattering dominates; 'diffusion' suits the core, "
                                      "'montecarlo' is the reference";
     if (!s.sources.empty())
-        advice = fmt::format("lit by {} volume source(s) ([[sources]]): only 'dom' and 'montecarlo' model them "
-                             "('montecarlo' is the reference); optical depth: {}",
+        advice = fmt::format("lit by {} volume source(s) ([[sources]]): 'dom', 'diffusion', 'lpm' and "
+                             "'montecarlo' model them ('montecarlo' is the reference; 'diffusion' has no "
+                             "transport across empty cells); optical depth: {}",
                              s.sources.size(), tau < 0.3 ? "thin" : tau < 3 ? "intermediate" : "thick");
     log::info("models in this build: {}; this scene is {}", fmt::format("{}", fmt::join(available_models(), ", ")), advice);
     log::info("model asked for: '{}'", s.model.name);

@@ -89,8 +89,9 @@ struct LightSpec {
 // belongs to the medium; the empty cells of a covered box emit nothing). power is the emitted
 // power per unit volume into all directions (W/m³), per band or one value for every band; the
 // radiance source is q = power / 4π (W/m³/sr). Emitted light, collided or not, is part of
-// fluence_diffuse (DESIGN §1). Supported by the dom and montecarlo models (validate() rejects
-// a scene with sources for any other model).
+// fluence_diffuse (DESIGN §1). Supported by the dom, diffusion, lpm and montecarlo models
+// (validate() rejects a scene with sources for any other model, and emission into a band with
+// sigma_t = 0).
 struct SourceSpec {
     std::array<double, 3> lo{0.0, 0.0, 0.0};
     std::array<double, 3> hi{0.0, 0.0, 0.0};

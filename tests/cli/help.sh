@@ -14,7 +14,7 @@ if [ -n "$scenes" ]; then
   done
   # A scene lit by a volume source: the advice names the models that model sources.
   out=$("$nimbus" info "$scenes/duct.toml" 2>&1)
-  if echo "$out" | grep -q "only 'dom' and 'montecarlo' model them"; then pass=$((pass + 1)); else echo "FAIL: nimbus info (duct) does not name the models for [[sources]]"; echo "$out" | tail -3; fail=$((fail + 1)); fi
+  if echo "$out" | grep -q "'dom', 'diffusion', 'lpm' and 'montecarlo' model them"; then pass=$((pass + 1)); else echo "FAIL: nimbus info (duct) does not name the models for [[sources]]"; echo "$out" | tail -3; fail=$((fail + 1)); fi
 fi
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]
