@@ -17,7 +17,11 @@ LegendrePhase hg_legendre(double g, int L, bool delta_m) {
         throw Error(fmt::format("HG Legendre moments: |g| = {} must be < 1", g));
     if (L < 0) throw Error(fmt::format("HG Legendre moments: order L = {} must be >= 0", L));
     LegendrePhase p;
-    p.f = delta_m ? std::pow(g, L + 1) : 0.0;  // Wiscombe 1977 eq. 7: f = chi_{L+1} = g^{L+1}
+    // Wiscombe 1977 eq. 7: f = chi_{L+1} = g^{L+1}, the FORWARD peak's weight. A backscattering
+    // HG (g < 0) has no forward peak: its chi_l alternate in sign, and g^{L+1} > 0 for odd L
+    // would give |chi*_1| > 1 (g = -0.9, L = 3: chi*_1 = -4.5, a scattering operator of norm > 1
+    // on which source iteration and DSA diverge). Then f = 0: the plain truncated series.
+    p.f = delta_m && g > 0 ? std::pow(g, L + 1) : 0.0;
     p.chi.resize(L + 1);
     for (int l = 0; l <= L; ++l) p.chi[l] = (std::pow(g, l) - p.f) / (1.0 - p.f);
     return p;

@@ -7,7 +7,8 @@
 // Delta-M (Wiscombe 1977, J. Atmos. Sci. 34, eqs. 7-13) with L: f = g^{L+1},
 //   chi*_l = (g^l - f)/(1 - f), l = 0..L (chi*_0 = 1, chi*_1 = (g - f)/(1 - f));
 //   the caller rescales the medium: sigma_t* = (1 - a f) sigma_t, a* = (1 - f) a / (1 - a f)
-//   (delta_m_sigma_t_scale, delta_m_albedo below). Without delta-M, f = 0.
+//   (delta_m_sigma_t_scale, delta_m_albedo below). Without delta-M, or for g <= 0 (no
+//   forward peak), f = 0.
 //
 // Moments: real orthonormal spherical harmonics Y_{l,m}(Ω), polar axis z, μ = Ω_z,
 // φ = atan2(Ω_y, Ω_x), no Condon-Shortley phase, ∫ Y_a Y_b dΩ = δ_ab:
