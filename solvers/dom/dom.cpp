@@ -117,8 +117,19 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
         if (!r.converged) {
             rec["bands"].push_back({{"band", m.bands[static_cast<size_t>(b)].name}, {"converged", false},
                                     {"iterations", r.iterations}, {"history", r.history}});
+            const BandOptics& o = m.bands[static_cast<size_t>(b)];
+            if (r.stalled)
+                throw Error(fmt::format(
+                    "dom: band {} diverges with iteration = \"{}\": the relative change has stayed above "
+                    "{:g} times its lowest value for {} iterations ({}){}; use model.dom.iteration = "
+                    "\"gmres\" (DSA-preconditioned GMRES)",
+                    o.name, opt_.iteration, dom::kStallGrowth, dom::kStallWindow, dom::format_history(r.history),
+                    o.g < 0 ? fmt::format(" - DSA's isotropic correction diverges on strongly backscattering "
+                                          "media (g = {})", o.g)
+                            : ""));
             throw Error(fmt::format("dom: band {} did not converge in {} {} iterations (tolerance {:.1e}); "
-                                    "relative change: {}", m.bands[static_cast<size_t>(b)].name, r.iterations,
+                                    "relative change: {}; raise model.dom.max_iterations or use "
+                                    "model.dom.iteration = \"gmres\"", o.name, r.iterations,
                                     opt_.iteration, opt_.tolerance, dom::format_history(r.history)));
         }
         // Energy balance of the scaled problem: emitted + first-collision = absorbed + leaked.

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 
@@ -45,6 +46,14 @@ std::string format_history(const std::vector<double>& h) {
         s += fmt::format("{}: {:.3e}{}", i + 1, h[i], i + 1 < n ? ", " : "");
     }
     return s;
+}
+
+bool stalled(const std::vector<double>& history) {
+    const size_t n = history.size(), w = static_cast<size_t>(kStallWindow);
+    if (n < 2 * w) return false;
+    const double before = *std::min_element(history.begin(), history.end() - static_cast<std::ptrdiff_t>(w));
+    const double recent = *std::min_element(history.end() - static_cast<std::ptrdiff_t>(w), history.end());
+    return recent > kStallGrowth * before;
 }
 
 IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, const AngularSet& ang,
@@ -102,6 +111,10 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
         fluence_old = out.fluence;
         if (change <= tolerance) {
             res.converged = true;
+            break;
+        }
+        if (stalled(res.history)) {
+            res.stalled = true;
             break;
         }
     }

@@ -80,12 +80,13 @@ struct CubeRun {
     DiffuseSolution sol;
 };
 inline CubeRun solve_thick_cube(int n, double tau, double albedo, const std::string& scheme,
-                                const std::string& method, int max_iterations) {
-    DomWorld w(MPI_COMM_WORLD, {n, n, n}, tau / n, BandOptics{"gray", 1.0, albedo, 0.0});
+                                const std::string& method, int max_iterations, double g = 0.0,
+                                int legendre_order = 0) {
+    DomWorld w(MPI_COMM_WORLD, {n, n, n}, tau / n, BandOptics{"gray", 1.0, albedo, g});
     w.add_sun_from_top({0.3, 0.2, -1.0});
     DomOptions o;
     o.order = 4;
-    o.legendre_order = 0;
+    o.legendre_order = legendre_order;
     o.iteration = method;
     o.scheme = scheme;
     o.tolerance = 1e-6;

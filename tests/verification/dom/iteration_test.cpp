@@ -6,8 +6,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <vector>
 
 #include "solvers/dom/dom.h"
+#include "solvers/dom/iteration.h"
 #include "src/core/error.h"
 #include "tests/support/mpi_test.h"
 #include "tests/verification/dom/dom_world.h"
@@ -163,6 +165,46 @@ TEST(DomIteration, SourceIterationStallsOnTheThickCube) {
         EXPECT_GT(rho, 0.98);
         EXPECT_GT(needed, 1000);
     }
+}
+
+// The early stop of source iteration and DSA (iteration.h): a change that keeps setting new
+// minima runs on, and so does one wandering at a floor; one that grew above kStallGrowth times
+// its minimum and stayed there for kStallWindow iterations stops.
+TEST(DomIteration, StallDetection) {
+    using dom::kStallWindow;
+    std::vector<double> slow, wavy, flat, diverging;
+    for (int i = 0; i < 6 * kStallWindow; ++i) {
+        slow.push_back(std::pow(0.99, i));                                      // source iteration, ratio 0.99
+        wavy.push_back(std::pow(0.6, i / 6.0) * (1.5 + std::sin(i * std::acos(-1.0) / 3)));  // period 6
+        flat.push_back(i < 10 ? std::pow(0.3, i) : 1e-5 * (1.5 + std::sin(i)));  // wandering at a floor
+        diverging.push_back(i < 4 ? std::pow(0.3, i) : 0.07 * std::pow(1.3, i - 4));
+        const std::vector<double> s(slow), w(wavy);
+        EXPECT_FALSE(dom::stalled(s)) << i;
+        EXPECT_FALSE(dom::stalled(w)) << i;
+    }
+    EXPECT_FALSE(dom::stalled(flat));  // at a floor (e.g. round-off): max_iterations decides
+    std::vector<double> d(diverging.begin(), diverging.begin() + 2 * kStallWindow - 1);
+    EXPECT_FALSE(dom::stalled(d));  // too short to tell
+    d.push_back(diverging[2 * kStallWindow - 1]);
+    EXPECT_TRUE(dom::stalled(d));
+}
+
+// DSA corrects only the isotropic error; on a thick, nearly conservative, strongly
+// backscattering cube (g = -0.9, albedo 0.99, tau 20: scenes/dense_cube.toml's optics with g
+// reversed) it diverges (the change settles near 1.8). It stops after 2 kStallWindow iterations
+// with an error that names gmres, which converges.
+TEST(DomIteration, DsaStopsEarlyOnBackscatteringAndGmresConverges) {
+    const CubeRun dsa = test::solve_thick_cube(16, 20.0, 0.99, "step", "dsa", 500, -0.9, 3);
+    const CubeRun gmres = test::solve_thick_cube(16, 20.0, 0.99, "step", "gmres", 60, -0.9, 3);
+    if (test::world_rank() == 0)
+        std::printf("tau 20 cube, a 0.99, g -0.9: dsa stopped after %d (last change %.2f, %.2f s); gmres %d "
+                    "iterations\n", dsa.iterations, dsa.history.empty() ? 0.0 : dsa.history.back(), dsa.seconds,
+                    gmres.iterations);
+    EXPECT_FALSE(dsa.converged);
+    EXPECT_EQ(dsa.iterations, 2 * dom::kStallWindow);
+    EXPECT_NE(dsa.error.find("diverges with iteration = \"dsa\""), std::string::npos) << dsa.error;
+    EXPECT_NE(dsa.error.find("model.dom.iteration = \"gmres\""), std::string::npos) << dsa.error;
+    EXPECT_TRUE(gmres.converged) << gmres.error;
 }
 
 }  // namespace
