@@ -19,13 +19,18 @@ bool proportional(const std::vector<double>& a, const std::vector<double>& b, do
     return true;
 }
 
-// One rhs per band; a band proportional (over the terms) to an earlier rhs band shares it.
+// One rhs per band; a band proportional (over the terms) to an earlier rhs band shares it, and
+// a band dark in every term needs none (its diffuse field is zero).
 BandGroup by_band(const OpticsGroup& og, const std::vector<std::vector<double>>& strength) {
     BandGroup g{og.optics, {}, {}};
     for (const int b : og.bands) {
         std::vector<double> e;
         for (const auto& t : strength) e.push_back(t[static_cast<size_t>(b)]);
         BandUse use{b, {}};
+        if (std::all_of(e.begin(), e.end(), [](double v) { return v == 0.0; })) {
+            g.bands.push_back(use);
+            continue;
+        }
         for (size_t r = 0; r < g.rhs_weights.size() && use.terms.empty(); ++r) {
             double scale = 1.0;
             if (proportional(e, g.rhs_weights[r], scale)) use.terms.push_back({static_cast<int>(r), scale});

@@ -38,7 +38,7 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
     rec["tolerance"] = opt.tolerance;
     rec["region"] = {{"lo", res.region.box.lo}, {"hi", res.region.box.hi},
                      {"cells", res.region.cells()}};
-    if (res.region.box.empty()) return res;  // nothing scatters
+    if (res.region.box.empty() || nrhs == 0) return res;  // nothing scatters, or nothing lights it
 
     // Cap of the transport mean free path (diffusion_kernel.h): the option, or the region size.
     const double floor = 1.0 / transport_cap(res.region, p, opt);

@@ -69,6 +69,32 @@ TEST(DiffusionEmission, UniformSourceInAnInfiniteMediumGivesPowerOverSigmaA) {
     EXPECT_LT(flux, 1e-9 * exact);
 }
 
+// No light term and no source (e.g. sun.enabled = false, no sky): nothing to solve, the diffuse
+// field is zero (this used to index the first of zero right-hand sides and crash).
+TEST(DiffusionEmission, NothingLitIsZeroWithoutASolve) {
+    const Int3 n{6, 6, 8};
+    const double h = 0.5;
+    const BandOptics band{"gray", 2.0, 0.9, 0.7};
+    Decomposition d(MPI_COMM_WORLD, n);
+    const Medium m = test::make_medium(d, h, band, [](int, int, int) { return 1.0; });
+    for (const char* limiter : {"none", "levermore-pomraning"}) {
+        const Scene scene = emitting_scene(n, h, {band}, {});
+        DiffusionOptions opt;
+        opt.flux_limiter = limiter;
+        Report report;
+        DiffuseSolution sol;
+        make_diffusion_model(opt)->solve(SolveContext{scene, d, m, LightTransport{}, report}, sol);
+        ASSERT_EQ(sol.fluence.size(), 1u);
+        double peak = 0.0;
+        for_each_cell(d.local(), [&](int i, int j, int k) {
+            peak = std::max(peak, std::abs(sol.fluence[0](i, j, k)));
+            for (int c = 0; c < 3; ++c) peak = std::max(peak, std::abs(sol.flux[0](i, j, k, c)));
+        });
+        EXPECT_EQ(test::global_max(peak, MPI_COMM_WORLD), 0.0) << limiter;
+        EXPECT_EQ(report.values()["diffusion"]["solves"].get<int>(), 0) << limiter;
+    }
+}
+
 TEST(DiffusionEmission, OneEmittingCellIsThePointSourceSolution) {
     // h = L/4, the Marshak boundary 5L away (as point_source_error(1) in test_analytic.cpp):
     // kappa h = 1, g = 0, D = h/3, sigma_a = D/L², so 1 - a = 1/48.
