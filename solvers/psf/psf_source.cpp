@@ -64,9 +64,14 @@ PsfSource::PsfSource(const SolveContext& ctx, const PsfOptions& opt)
     }
     ngroups_ = static_cast<int>(group_sigma.size());
     group_sigma_ = group_sigma;
-    check_collective(d.comm(), nl * ngroups_ <= kMaxComp && nl > 0,
-                     fmt::format("model psf: {} light terms x {} extinction groups; supported 1..{} volumes",
-                                 nl, ngroups_, kMaxComp));
+    check_collective(d.comm(), nl > 0,
+                     "model psf: the scene has no light to blur (sun disabled, no sky); enable [sun] or "
+                     "give sky.radiance");
+    check_collective(d.comm(), nl * ngroups_ <= kMaxComp,
+                     fmt::format("model psf: {} light terms x {} bands of different sigma_t need {} light "
+                                 "volumes, more than the {} supported; lower sky.directions or give bands "
+                                 "equal sigma_t",
+                                 nl, ngroups_, nl * ngroups_, kMaxComp));
     check_collective(d.comm(), static_cast<int>(ctx.light.tau_rho.size()) == nl,
                      "model psf: the light pass must provide tau_rho for every light term");
 

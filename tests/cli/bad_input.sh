@@ -74,6 +74,10 @@ out=$(timeout 120 "$mpiexec" -n "$np" "$nimbus" run "${small[@]}" --out /proc/ve
 if [ $code -ne 0 ] && [ $code -ne 124 ] && echo "$out" | grep -q "nimbus: error:.*not writable"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: unwritable output folder (exit $code)"; echo "$out" | tail -3; fi
 # More ranks than z cells.
 if [ "$np" -gt 1 ]; then expect_error "no cells" --set "grid.n=[8,8,1]"; fi
+# psf needs a light to blur: a clear message, not its internal volume count.
+if "$nimbus" info --set "grid.n=[8,8,8]" 2>&1 | grep -q "models in this build:.*psf"; then
+  expect_error "model psf: the scene has no light to blur" "${small[@]}" --set 'model.name="psf"' --set "sun.enabled=false" --set "sky.radiance=[]"
+fi
 # psf's own pass needs slabs along z; the message names psf, not the (exact) light pass.
 if [ "$np" -gt 1 ] && "$nimbus" info --set "grid.n=[8,8,8]" 2>&1 | grep -q "models in this build:.*psf"; then
   expect_error "model psf needs slabs along z" "${small[@]}" --set 'model.name="psf"' --set "grid.process_grid=[2,1,1]"
