@@ -6,6 +6,7 @@
 
 #include "solvers/diffusion/hypre_struct.h"
 #include "solvers/diffusion/linear_solve.h"
+#include "src/core/log.h"
 #include "src/core/error.h"
 
 namespace nimbus::diffusion {
@@ -133,6 +134,8 @@ LinearSolveOutput solve_with_hypre(const Decomposition& d, const Assembler& asse
             st.reported_residual = solver.final_relative_residual();
             st.true_residual = true_relative_residual(comm, A, x, b_values[r], b_norm[r], box, res);
             rounds.emplace_back(st.iterations, st.true_residual);
+            log::debug("diffusion: rhs {} round {}: {} {} iterations, relative residual {:.3e} (true {:.3e})",
+                       r, round, its, opt.solver, st.reported_residual, st.true_residual);
             if (st.true_residual <= opt.tolerance) {
                 ok = true;
                 break;

@@ -8,6 +8,7 @@
 
 #include "solvers/dom/dsa.h"
 #include "solvers/dom/gmres.h"
+#include "src/core/log.h"
 
 namespace nimbus::dom {
 namespace {
@@ -107,6 +108,8 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
         const double change = sums[1] > 0 ? std::sqrt(sums[0] / sums[1]) : 0.0;
         res.history.push_back(change);
         res.iterations = it;
+        log::debug("dom: {} iteration {}: relative change {:.3e}{}", method, it, change,
+                   dsa ? fmt::format(" (DSA: {} PFMG-PCG iterations so far)", res.dsa_linear_iterations) : "");
         std::swap(phi, out.phi);  // phi: the current iterate, feeds the next source
         fluence_old = out.fluence;
         if (change <= tolerance) {

@@ -7,6 +7,7 @@
 
 #include "solvers/lpm/map_sweep.h"
 #include "solvers/lpm/tail.h"
+#include "src/core/log.h"
 #include "src/core/halo.h"
 #include "src/physics/lights.h"
 
@@ -115,6 +116,8 @@ BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransp
         });
         r.max_U.push_back(global_max(u_max, d.comm()) / u_max0);
         r.remaining_history.push_back(global_sum(left, d.comm()));
+        log::debug("lpm: band {} iteration {}: max U / initial {:.3e}, unpropagated power {:.4g} W", band,
+                   r.iterations, r.max_U.back(), r.remaining_history.back());
         if (r.max_U.back() < opt.epsilon) break;
     }
 

@@ -456,6 +456,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
             diffuse_s2 += v * v;
         }
         done += kept;
+        log::debug("montecarlo: round done: {} of {} batches kept ({} complete this round)", done, layout, kept);
         // Relative standard error of the total diffuse power over the kept batches.
         const double m = diffuse_s1 / std::max(1, done);
         const double var =

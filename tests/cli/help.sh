@@ -12,6 +12,11 @@ if [ -n "$scenes" ]; then
   for want in "48 x 48 x 48" "vertical optical depth max 20" "memory estimate per rank" "optically thick"; do
     if echo "$out" | grep -q "$want"; then pass=$((pass + 1)); else echo "FAIL: nimbus info lacks '$want'"; echo "$out" | tail -3; fail=$((fail + 1)); fi
   done
+  # --log-level debug adds the solvers' per-iteration lines (here DOM's relative change).
+  tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
+  out=$("$nimbus" --log-level debug run "$scenes/dense_cube.toml" --set 'model.name="dom"' --set "grid.n=[8,8,8]" \
+        --set output.image=false --out "$tmp/dbg" 2>&1)
+  if echo "$out" | grep -q "\[debug\] dom: dsa iteration 1: relative change"; then pass=$((pass + 1)); else echo "FAIL: --log-level debug shows no iteration lines"; echo "$out" | tail -3; fail=$((fail + 1)); fi
   # A scene lit by a volume source: the advice names the models that model sources.
   out=$("$nimbus" info "$scenes/duct.toml" 2>&1)
   if echo "$out" | grep -q "'dom', 'diffusion', 'lpm' and 'montecarlo' model them"; then pass=$((pass + 1)); else echo "FAIL: nimbus info (duct) does not name the models for [[sources]]"; echo "$out" | tail -3; fail=$((fail + 1)); fi
