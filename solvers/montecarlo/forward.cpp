@@ -114,15 +114,11 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     for (const OpticsGroup& g : groups)
         if (g.bands.size() > 64) throw Error("Monte Carlo supports at most 64 bands with equal optics");
 
-    // Memory of the replicated arrays, per rank: density (gathered + global), the 16-byte voxels
-    // (kappa, empty-space distance, light accumulator) per group,
-    // per band the batch tally and its running sum and sum of squares, and the reduce buffer;
-    // the emitting-cell lists of the volume sources (at most 4 bytes per covered cell).
+    // Memory of the replicated arrays, per rank (replicated_bytes, forward.h).
     double source_cells = 0.0;
     for (const VolumeSource& src : sources) source_cells += static_cast<double>(src.cells.cells());
-    const double bytes = static_cast<double>(cells) *
-                         (16.0 + 16.0 * static_cast<double>(groups.size()) + 8.0 * nb * (nq / 2) * 3 + 8.0 * nb * nq + 12.0) +
-                         4.0 * source_cells;
+    const double bytes = replicated_bytes(static_cast<double>(cells), static_cast<int>(groups.size()), nb,
+                                          settings.tally_reduced, source_cells);
     ForwardResult res;
     res.replicated_gb = bytes / 1e9;
     if (res.replicated_gb > opt.max_replicated_memory_gb)

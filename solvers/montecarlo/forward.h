@@ -94,6 +94,17 @@ struct ForwardResult {
     std::string stop_reason;                   // "photons", "time_budget", "target_rel_error"
 };
 
+// Bytes per rank of the replicated arrays of trace_forward for a grid (or walked box) of
+// `cells` cells: density (gathered + global), the 16-byte voxels per optics group, per band the
+// batch tally and its running sum and sum of squares (twice with the reduced tally) and the
+// reduce buffer; plus at most 4 bytes per covered cell of the volume sources' cell lists.
+inline double replicated_bytes(double cells, int optics_groups, int nbands, bool tally_reduced,
+                               double source_cells = 0.0) {
+    const int nq = tally_reduced ? 4 : 2;
+    return cells * (16.0 + 16.0 * optics_groups + 8.0 * nbands * (nq / 2) * 3 + 8.0 * nbands * nq + 12.0) +
+           4.0 * source_cells;
+}
+
 // Collective over d.comm(). medium.rho must hold the owned box; lights as from make_lights.
 // Periodic axes are taken from d.periodic() (photons enter only through non-periodic faces).
 // Throws Error (on every rank) if the replicated arrays would exceed

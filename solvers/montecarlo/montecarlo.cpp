@@ -5,6 +5,7 @@
 #include "src/core/log.h"
 #include "src/core/report.h"
 #include "src/scene/emission.h"
+#include "src/scene/optics_groups.h"
 
 namespace nimbus {
 
@@ -90,6 +91,12 @@ public:
     }
 
     bool renders_image() const override { return opt_.image; }
+    // The replicated arrays (forward.h) over the whole grid: an upper bound, the run walks only
+    // the bounding box of the cloud.
+    double memory_bytes(const Scene& s, const Decomposition& d, int) const override {
+        return mc::replicated_bytes(static_cast<double>(d.global().cells()),
+                                    static_cast<int>(group_by_optics(s.bands).size()), s.nbands(), false);
+    }
 
     Image render(const SolveContext& ctx) override {
         ScopedTimer timer(ctx.report, "montecarlo/render");

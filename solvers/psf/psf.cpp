@@ -1,5 +1,8 @@
 #include "solvers/psf/psf.h"
 
+#include <algorithm>
+#include <vector>
+
 #include "solvers/psf/psf_source.h"
 #include "src/core/report.h"
 #include "src/render/raycaster.h"
@@ -31,6 +34,14 @@ public:
     }
 
     bool renders_image() const override { return true; }
+    // The Gaussian pyramids: ~30 bytes per local cell per light volume (light terms x bands of
+    // different sigma_t), measured on the default cloud: 271 bytes at 9 terms, ~540 at 17.
+    double memory_bytes(const Scene& s, const Decomposition& d, int nlights) const override {
+        std::vector<double> sigma;
+        for (const BandOptics& b : s.bands)
+            if (std::find(sigma.begin(), sigma.end(), b.sigma_t) == sigma.end()) sigma.push_back(b.sigma_t);
+        return 30.0 * nlights * static_cast<double>(sigma.size()) * static_cast<double>(d.local().cells());
+    }
     Image render(const SolveContext& ctx) override {
         const DiffuseSolution none;  // multiple scattering comes from the PSF source
         RenderInputs in{ctx.scene, ctx.medium, ctx.light, none};

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "src/core/error.h"
+#include "solvers/registry.h"
 #include "src/physics/lights.h"
 
 namespace nimbus::cmd {
@@ -36,17 +37,18 @@ double available_memory() {
 
 MemoryEstimate estimate_memory(const Scene& s, const Decomposition& d) {
     const double local_cells = static_cast<double>(d.local().grown(1).cells());
-    const double nlights = static_cast<double>(make_lights(s).size());
+    const int nlights = static_cast<int>(make_lights(s).size());
+    // The light pass's tau per light term, density, the per-band outputs, the renderer's view
+    // volume and image; plus ~40 MiB of libraries and MPI that every rank holds (a 48x48x32
+    // single-scattering run peaks at 53 MiB for ~15 MiB of fields).
     const double fields = 1 + nlights + 2.0 * s.nbands() + 2.0;
-    MemoryEstimate m{local_cells * 8 * fields + 40.0 * s.camera.width * s.camera.height, "light pass, render"};
-    if (s.model.name == "montecarlo") {
-        // The density is replicated on every rank with per-band sum/sum² tallies (batch means).
-        m.bytes += static_cast<double>(d.global().cells()) * (24.0 + 28.0 * s.nbands());
-        m.what += ", Monte Carlo (replicated grid)";
-    } else if (s.model.name == "diffusion") {
-        // hypre: 7-point matrix + ~6 vectors, x ~1.4 for the multigrid hierarchy; flux per band.
-        m.bytes += local_cells * 8 * (13 * 1.4 + 3.0 * s.nbands());
-        m.what += ", diffusion (hypre)";
+    MemoryEstimate m{40.0 * 1024 * 1024 + local_cells * 8 * fields + 40.0 * s.camera.width * s.camera.height,
+                     "light pass, render"};
+    const double model = make_model(s.model)->memory_bytes(s, d, nlights);
+    m.replicated = s.model.name == "montecarlo";
+    if (model > 0) {
+        m.bytes += model;
+        m.what += fmt::format(", model {} {:.0f} MiB", s.model.name, model / (1024.0 * 1024.0));
     }
     return m;
 }
@@ -63,8 +65,11 @@ void check_memory_fits(MPI_Comm comm, const MemoryEstimate& m) {
     check_collective(comm, avail <= 0 || node_bytes <= avail,
                      fmt::format("the grid does not fit in memory: a run needs about {:.1f} GiB per rank ({}), "
                                  "{:.1f} GiB for the {} rank(s) on this node, which has {:.1f} GiB available; "
-                                 "use more ranks (on more nodes) or a smaller grid",
-                                 m.bytes / kGiB, m.what, node_bytes / kGiB, ranks_on_node, avail / kGiB));
+                                 "{}",
+                                 m.bytes / kGiB, m.what, node_bytes / kGiB, ranks_on_node, avail / kGiB,
+                                 m.replicated ? "Monte Carlo copies the grid to every rank: run fewer ranks per node "
+                                                "(more nodes), or a coarser grid"
+                                              : "use more ranks (on more nodes) or a smaller grid"));
 }
 
 }  // namespace nimbus::cmd

@@ -14,13 +14,16 @@ namespace nimbus::cmd {
 
 struct MemoryEstimate {
     double bytes = 0;  // on this rank
-    std::string what;  // what the figure covers, e.g. "light pass, render, diffusion (hypre)"
+    std::string what;  // what the figure covers, e.g. "light pass, render, model dom 1.2 GiB"
+    bool replicated = false;  // the model copies the whole grid to every rank (Monte Carlo)
 };
 
 // Fields every run holds on this rank's box (+1 ghost layer): rho, tau_rho per light term,
 // fluence per band (+ output copies), the renderer's view volume, the image fragments; plus
-// the model's own share where it is known (Monte Carlo's replicated grid, hypre's matrix and
-// multigrid hierarchy). A lower bound for models with angular storage (dom, lpm). Not collective.
+// the model's own share (ScatteringModel::memory_bytes: Monte Carlo's replicated grid, hypre's
+// matrix and hierarchy, DOM's angular state and GMRES basis, LPM's coarse bins, the PSF
+// pyramids), calibrated against measured peaks (docs in each model's memory_bytes). Not
+// collective.
 MemoryEstimate estimate_memory(const Scene& s, const Decomposition& d);
 
 // Collective over comm. Throws Error on every rank when the ranks sharing a node would need

@@ -69,6 +69,11 @@ public:
     // the pipeline then calls render() (collective; image on rank 0) instead of the ray caster.
     virtual bool renders_image() const { return false; }
     virtual Image render(const SolveContext& /*ctx*/) { return {}; }
+    // Bytes this rank's solve will hold at its peak beyond the light pass and the renderer, for
+    // the memory check that `info` and `run` make before anything is allocated (src/cmd/memory.h).
+    // nlights: the scene's light terms (sun + sky bins). Estimates calibrated against measured
+    // peaks are fine; 0 when the model needs nothing per cell.
+    virtual double memory_bytes(const Scene& /*s*/, const Decomposition& /*d*/, int /*nlights*/) const { return 0.0; }
 };
 
 // Zero-initialized fluence fields for every band on d's local box (+1 ghost).

@@ -1,0 +1,44 @@
+// The memory estimate that `info` and `run` check before allocating (src/cmd/memory.h): each
+// model's own storage (ScatteringModel::memory_bytes) is in it, and grows with what the model
+// stores per cell. The calibration against measured peaks is in the README ("Running").
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "io/scene/scene_toml.h"
+#include "src/cmd/memory.h"
+#include "src/scene/scene.h"
+#include "tests/support/mpi_test.h"
+
+namespace nimbus {
+namespace {
+
+double estimate(const std::string& model, void (*tweak)(Scene&) = nullptr) {
+    Scene s = default_scene();
+    s.grid.n = {48, 48, 32};
+    s.model.name = model;
+    if (tweak) tweak(s);
+    const Decomposition d(MPI_COMM_WORLD, s.grid.n);
+    return cmd::estimate_memory(s, d).bytes;
+}
+
+TEST(MemoryEstimate, EachModelAddsItsStorage) {
+    const double single = estimate("single");
+    for (const char* m : {"diffusion", "dom", "lpm", "psf", "montecarlo"}) EXPECT_GT(estimate(m), single) << m;
+    // DOM: more directions and moments, and GMRES's Krylov basis, cost more.
+    const double s4 = estimate("dom");
+    EXPECT_GT(estimate("dom", [](Scene& s) { s.model.dom.order = 8, s.model.dom.legendre_order = 7; }), 2 * s4 - single);
+    EXPECT_GT(estimate("dom", [](Scene& s) { s.model.dom.iteration = "gmres"; }), 2 * s4 - single);
+    // LPM: 6k² coarse bins per cell.
+    EXPECT_GT(estimate("lpm", [](Scene& s) { s.model.lpm.p = 3, s.model.lpm.k = 3; }),
+              estimate("lpm", [](Scene& s) { s.model.lpm.p = 3, s.model.lpm.k = 1; }));
+    // The figure says what it covers.
+    const std::string what = [] {
+        Scene s = default_scene();
+        return cmd::estimate_memory(s, Decomposition(MPI_COMM_WORLD, s.grid.n)).what;
+    }();
+    EXPECT_NE(what.find("model montecarlo"), std::string::npos) << what;
+}
+
+}  // namespace
+}  // namespace nimbus
