@@ -103,6 +103,15 @@ Scene load_run_scene(MPI_Comm comm, const RunOptions& opts) {
                                         : load_scene_file(opts.scene_path, opts.overrides);
         if (!opts.out_dir.empty()) scene.output.dir = opts.out_dir;
     });
+    // A --set of another model's option is valid (scene files carry options for several models)
+    // but has no effect on this run: say so, since it was typed for this run.
+    for (const std::string& o : opts.overrides) {
+        const std::string key = o.substr(0, o.find('='));
+        if (key.rfind("model.", 0) != 0) continue;
+        const std::string rest = key.substr(6), sub = rest.substr(0, rest.find('.'));
+        if (sub != rest && sub != scene.model.name)
+            log::warn("--set {}: ignored, this run's model is '{}' (model.name)", key, scene.model.name);
+    }
     return scene;
 }
 

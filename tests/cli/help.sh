@@ -17,6 +17,9 @@ if [ -n "$scenes" ]; then
   out=$("$nimbus" --log-level debug run "$scenes/dense_cube.toml" --set 'model.name="dom"' --set "grid.n=[8,8,8]" \
         --set output.image=false --out "$tmp/dbg" 2>&1)
   if echo "$out" | grep -q "\[debug\] dom: dsa iteration 1: relative change"; then pass=$((pass + 1)); else echo "FAIL: --log-level debug shows no iteration lines"; echo "$out" | tail -3; fail=$((fail + 1)); fi
+  # A --set of another model's option is accepted but said to be ignored.
+  out=$("$nimbus" info "$scenes/dense_cube.toml" --set 'model.name="diffusion"' --set model.dom.order=8 2>&1)
+  if echo "$out" | grep -q "\-\-set model.dom.order: ignored, this run's model is 'diffusion'"; then pass=$((pass + 1)); else echo "FAIL: no warning for another model's --set"; echo "$out" | tail -3; fail=$((fail + 1)); fi
   # A scene lit by a volume source: the advice names the models that model sources.
   out=$("$nimbus" info "$scenes/duct.toml" 2>&1)
   if echo "$out" | grep -q "'dom', 'diffusion', 'lpm' and 'montecarlo' model them"; then pass=$((pass + 1)); else echo "FAIL: nimbus info (duct) does not name the models for [[sources]]"; echo "$out" | tail -3; fail=$((fail + 1)); fi
