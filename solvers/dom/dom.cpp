@@ -13,6 +13,7 @@
 #include "src/core/error.h"
 #include "src/core/halo.h"
 #include "src/core/log.h"
+#include "src/physics/angular_moments.h"
 #include "src/scene/emission.h"
 
 namespace nimbus {
@@ -45,6 +46,10 @@ class DiscreteOrdinates final : public ScatteringModel {
         if (opt_.scheme != "diamond" || opt_.iteration != "dsa") return;
         double thick = 0.0;
         for_each_cell(p.kappa.owned(), [&](int i, int j, int k) { thick = std::max(thick, p.kappa(i, j, k) * p.h); });
+        refuse_diamond_dsa_beyond(d, thick);
+    }
+    // Collective: thick = this rank's max kappa* h (delta-M scaled).
+    void refuse_diamond_dsa_beyond(const Decomposition& d, double thick) const {
         MPI_Allreduce(MPI_IN_PLACE, &thick, 1, MPI_DOUBLE, MPI_MAX, d.comm());
         if (thick >= kDiamondDsaMaxCellTau)
             throw Error(fmt::format("model.dom.scheme = 'diamond' with iteration = 'dsa' diverges on cells this thick "
@@ -68,6 +73,20 @@ public:
     // band's coefficients, the light sources: state_bytes_per_cell below) per local cell, measured
     // 1.95x and 2.01x on the default cloud at S4 L3 and S8 L7; GMRES adds its Krylov basis, up to
     // 31 vectors of all moments (restart 30).
+    // Before the light pass: diamond with DSA on cells too thick for it (check_diamond_dsa, from
+    // the medium: kappa* = (1 - a f) rho sigma_t of every band).
+    void check(const Scene&, const Decomposition& d, const Medium& m) const override {
+        if (opt_.scheme != "diamond" || opt_.iteration != "dsa") return;
+        const dom::AngularSet ang = dom::make_angular_set(opt_);
+        double rho_max = 0.0;
+        for_each_cell(d.local(), [&](int i, int j, int k) { rho_max = std::max(rho_max, m.rho(i, j, k)); });
+        double thick = 0.0;
+        for (const BandOptics& o : m.bands) {
+            const double f = hg_legendre(o.g, ang.L, opt_.delta_m).f;
+            thick = std::max(thick, delta_m_sigma_t_scale(o.albedo, f) * o.sigma_t * rho_max * m.grid.h);
+        }
+        refuse_diamond_dsa_beyond(d, thick);
+    }
     double memory_bytes(const Scene& s, const Decomposition& d, int nlights) const override {
         const dom::AngularSet ang = dom::make_angular_set(opt_);
         double per_cell = 2.0 * state_bytes_per_cell(ang, nlights);

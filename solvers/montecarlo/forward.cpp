@@ -77,6 +77,15 @@ StopEta eta_to_stop(const MonteCarloOptions& opt, int done, double trace_seconds
     return eta;
 }
 
+void check_replicated_memory(const std::array<int, 3>& n, double bytes, const MonteCarloOptions& opt) {
+    if (bytes / 1e9 > opt.max_replicated_memory_gb)
+        throw Error(fmt::format(
+            "Monte Carlo replicates the {}x{}x{} grid on every rank: {:.2f} GB per rank exceeds "
+            "model.montecarlo.max_replicated_memory_gb = {:.2f}; raise that limit, run fewer ranks "
+            "per node, or use a coarser grid",
+            n[0], n[1], n[2], bytes / 1e9, opt.max_replicated_memory_gb));
+}
+
 int batch_split(double batch_seconds, double seconds_left, int batches, int ranks,
                 std::int64_t max_batches) {
     if (!(batch_seconds > 0)) return 1;
@@ -121,12 +130,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                                           settings.tally_reduced, source_cells);
     ForwardResult res;
     res.replicated_gb = bytes / 1e9;
-    if (res.replicated_gb > opt.max_replicated_memory_gb)
-        throw Error(fmt::format(
-            "Monte Carlo replicates the {}x{}x{} grid on every rank: {:.2f} GB per rank exceeds "
-            "model.montecarlo.max_replicated_memory_gb = {:.2f}; raise that limit, run fewer ranks "
-            "per node, or use a coarser grid",
-            n[0], n[1], n[2], res.replicated_gb, opt.max_replicated_memory_gb));
+    check_replicated_memory(n, bytes, opt);
 
     const std::vector<double> rho = allgather_global(medium.rho, d);
     std::array<bool, 3> periodic{d.periodic(0), d.periodic(1), d.periodic(2)};

@@ -105,6 +105,11 @@ inline double replicated_bytes(double cells, int optics_groups, int nbands, bool
            4.0 * source_cells;
 }
 
+// Throws Error when `bytes` of replicated arrays (replicated_bytes) of the n[0] x n[1] x n[2]
+// grid exceed opt.max_replicated_memory_gb; the run (trace_forward) and the pre-flight check
+// (`nimbus info`, the model's check) say the same.
+void check_replicated_memory(const std::array<int, 3>& n, double bytes, const MonteCarloOptions& opt);
+
 // Collective over d.comm(). medium.rho must hold the owned box; lights as from make_lights.
 // Periodic axes are taken from d.periodic() (photons enter only through non-periodic faces).
 // Throws Error (on every rank) if the replicated arrays would exceed

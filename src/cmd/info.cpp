@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <new>
+#include <utility>
 
 #include "io/scene/density_import.h"
 #include "solvers/registry.h"
@@ -18,6 +19,7 @@
 #include "src/core/log.h"
 #include "src/physics/lights.h"
 #include "src/pipeline/pipeline.h"
+#include "src/scene/emission.h"
 #include "src/scene/medium.h"
 
 namespace nimbus::cmd {
@@ -120,6 +122,13 @@ void info(const RunOptions& opts) {
                              s.sources.size(), tau < 0.3 ? "thin" : tau < 3 ? "intermediate" : "thick");
     log::info("models in this build: {}; this scene is {}", fmt::format("{}", fmt::join(available_models(), ", ")), advice);
     log::info("model asked for: '{}'", s.model.name);
+    // The checks a run makes once the density exists, before its light pass (pipeline.cpp).
+    Medium m;
+    m.grid = make_grid(s.grid);
+    m.bands = s.bands;
+    m.rho = std::move(rho);
+    check_volume_sources(volume_sources(s), m.rho, d);
+    make_model(s.model)->check(s, d, m);
 }
 
 }  // namespace

@@ -74,6 +74,10 @@ public:
     // nlights: the scene's light terms (sun + sky bins). Estimates calibrated against measured
     // peaks are fine; 0 when the model needs nothing per cell.
     virtual double memory_bytes(const Scene& /*s*/, const Decomposition& /*d*/, int /*nlights*/) const { return 0.0; }
+    // Collective. Throws the Error that solve() would throw for this scene and medium for a
+    // reason known before the light pass (limits, unsupported combinations), so that `run`
+    // fails before its costly phases and `info` fails on the same scenes.
+    virtual void check(const Scene& /*s*/, const Decomposition& /*d*/, const Medium& /*m*/) const {}
 };
 
 // Zero-initialized fluence fields for every band on d's local box (+1 ghost).

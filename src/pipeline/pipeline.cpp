@@ -19,6 +19,7 @@
 #include "src/core/log.h"
 #include "src/render/ray_box.h"
 #include "src/render/raycaster.h"
+#include "src/scene/emission.h"
 
 namespace nimbus {
 namespace {
@@ -146,6 +147,9 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
             fill_procedural_density(scene.medium, d, medium.rho);
         check_density(medium.rho, d);
     }
+    // What the model (and the sources) would refuse after the light pass, refused now.
+    check_volume_sources(volume_sources(scene), medium.rho, d);
+    model->check(scene, d, medium);
 
     const LightTransport light = compute_light_transport(d, medium, make_lights(scene), report, {}, scene.light.method);
     DiffuseSolution diffuse;

@@ -68,6 +68,9 @@ SUB=info
 expect_error "camera.look_at: the camera looks at nothing" "${small[@]}" --set "camera.look_at=[0.5,-3.0,0.42]"
 expect_error 'optics\[1\].name = "r" repeats' "${small[@]}" --set 'optics[1].name="r"'
 expect_error "the grid does not fit in memory" --set "grid.n=[65536,65536,65536]"
+# Refusals that need the density (model checks before the light pass): info says them too.
+expect_error "exceeds model.montecarlo.max_replicated_memory_gb" "${small[@]}" --set "model.montecarlo.max_replicated_memory_gb=0.000001"
+expect_error "with iteration = 'dsa' diverges on cells this thick" "${small[@]}" --set 'model.name="dom"' --set 'model.dom.scheme="diamond"' --set "optics[0].sigma_t=1.0"
 unset SUB
 # Unwritable output folder: a path below a regular file.
 out=$(timeout 120 "$mpiexec" -n "$np" "$nimbus" run "${small[@]}" --out /proc/version/x 2>&1); code=$?
