@@ -44,6 +44,9 @@ open(sys.argv[1], "wb").write(struct.pack("<512f", *v))
 PY
 printf "[grid]\nn = [8, 8, 8]\n[medium]\nkind = \"raw\"\nfile = \"neg.raw\"\n$optics" > "$tmp/neg.toml"
 small=(--set "grid.n=[12,12,8]" --set "camera.resolution=[16,12]")
+# A volume source over cells without density (a sphere of radius 0.3 in an 8^3 grid of 1 m
+# cells leaves the corner cell [0, 1)^3 empty).
+printf "[grid]\nn = [8, 8, 8]\n[medium]\nkind = \"sphere\"\nsphere_radius = 0.3\n$optics[model]\nname = \"dom\"\n[[sources]]\nlo = [0, 0, 0]\nhi = [1, 1, 1]\n" > "$tmp/dark_source.toml"
 
 expect_error "malformed" "$tmp/malformed.toml"
 expect_error "densty" "$tmp/misspelled.toml"
@@ -54,6 +57,7 @@ expect_error "zero-size" --set "grid.n=[0,8,8]"
 expect_error "looks at nothing" "${small[@]}" --set "camera.look_at=[0.5,-1.3,0.42]"
 expect_error "has 100 bytes but the grid needs 2048" "$tmp/raw.toml"
 expect_error "missing.raw" "$tmp/missing.toml"
+expect_error "sources\[0\] covers no cell with density" "$tmp/dark_source.toml"
 expect_error "NaN\|nan" "$tmp/nan.toml"
 expect_error "-1" "$tmp/neg.toml"
 expect_error "model" "${small[@]}" --set "model.name=\"nonsense\""
@@ -69,6 +73,7 @@ expect_error "camera.look_at: the camera looks at nothing" "${small[@]}" --set "
 expect_error 'optics\[1\].name = "r" repeats' "${small[@]}" --set 'optics[1].name="r"'
 expect_error "the grid does not fit in memory" --set "grid.n=[65536,65536,65536]"
 # Refusals that need the density (model checks before the light pass): info says them too.
+expect_error "sources\[0\] covers no cell with density" "$tmp/dark_source.toml"
 expect_error "exceeds model.montecarlo.max_replicated_memory_gb" "${small[@]}" --set "model.montecarlo.max_replicated_memory_gb=0.000001"
 expect_error "with iteration = 'dsa' diverges on cells this thick" "${small[@]}" --set 'model.name="dom"' --set 'model.dom.scheme="diamond"' --set "optics[0].sigma_t=1.0"
 unset SUB
