@@ -61,6 +61,11 @@ bool has_dataset(const std::string& file, const std::string& path) {
     return is_dataset(f.get(), path);
 }
 
+bool has_link(const std::string& file, const std::string& path) {
+    h5::Handle f = open_file(file);
+    return h5::link_exists(f.get(), path);
+}
+
 std::vector<std::string> list_group(const std::string& file, const std::string& group) {
     h5::Handle f = open_file(file);
     const std::string path = group.empty() ? "/" : group;

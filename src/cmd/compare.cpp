@@ -38,6 +38,12 @@ struct CompareArgs {
 
 nlohmann::json compare_runs(const CompareArgs& args) {
     const std::string field = "fields/" + args.field, err = field + "_stderr";
+    // transmittance_sun is written only when the scene has a sun: say so rather than "no such group".
+    if (args.field == "transmittance_sun")
+        for (const std::string& f : {args.a, args.b})
+            if (!has_link(f, field))
+                throw Error(fmt::format("'{}' has no {}: nimbus writes it only for scenes with a sun "
+                                        "(sun.enabled = true)", f, field));
     const std::vector<std::string> bands = list_group(args.b, field);
     if (bands.empty()) throw Error(fmt::format("'{}' has no {} datasets", args.b, field));
     const FieldData density = read_field(args.b, "fields/density");

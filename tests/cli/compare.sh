@@ -32,6 +32,7 @@ run a "${small[@]}" "${one[@]}" --set model.montecarlo.seed=1
 run b "${small[@]}" "${one[@]}" --set model.montecarlo.seed=2
 run a2 "${small[@]}" "${two[@]}" --set model.montecarlo.seed=1
 run single "${small[@]}" "${one[@]}" --set 'model.name="single"'  # no standard errors
+run nosun "${small[@]}" "${one[@]}" --set 'model.name="single"' --set sun.enabled=false  # no transmittance_sun
 A=$tmp/a/nimbus.h5 B=$tmp/b/nimbus.h5 A2=$tmp/a2/nimbus.h5 S=$tmp/single/nimbus.h5
 IA=$tmp/a/nimbus.exr IA2=$tmp/a2/nimbus.exr
 # A's output with band g's diffuse fluence and its standard error zero (as a band without
@@ -59,6 +60,11 @@ check "table image line" bash -c 'echo "$1" | grep -Eq "^image: RMSE [0-9.]+e[-+
 # the unscattered fluence of the same light pass).
 out=$(nim compare "$A" "$S" --field fluence_reduced 2>&1)
 check "no stderr: RMS z '-'" bash -c 'echo "$1" | grep -Eq "^r +[0-9.]+e[-+][0-9]+ +[0-9.]+e[-+][0-9]+ +- +[0-9]+$"' _ "$out"
+
+# transmittance_sun exists only for scenes with a sun: the error says so.
+out=$(nim compare "$tmp/nosun/nimbus.h5" "$S" --field transmittance_sun 2>&1); code=$?
+check "no sun: transmittance_sun refused (exit $code)" [ $code -eq 1 ]
+check "no sun: the reason" bash -c 'echo "$1" | grep -q "has no fields/transmittance_sun: nimbus writes it only for scenes with a sun"' _ "$out"
 
 # Against the zero band: exit 0, "undefined" in its row and a line saying why with the absolute
 # difference; the other bands (A against itself) 0; no inf or nan anywhere.
