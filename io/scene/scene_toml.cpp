@@ -103,6 +103,16 @@ std::string key_of_validation_message(const std::string& msg, const Scene& scene
 [[noreturn]] void throw_located(const std::string& msg, const Scene& scene,
                                 const toml::value& root, const std::string& source) {
     std::string key = key_of_validation_message(msg, scene);
+    // A message about two keys ("sources[0].lo must be < sources[0].hi") is located at the one
+    // a --set gave, if any: that is what the user just typed.
+    static const std::regex dotted(R"([a-z_]+(\[\d+\])?(\.[a-z_]+)+)");
+    for (auto it = std::sregex_iterator(msg.begin(), msg.end(), dotted); it != std::sregex_iterator(); ++it) {
+        const toml::value* o = find_path(root, it->str());
+        if (o && o->location().file_name().rfind(scene_io::kOverridePrefix, 0) == 0) {
+            key = it->str();
+            break;
+        }
+    }
     // The value itself, else its nearest ancestor present in the file.
     const toml::value* v = nullptr;
     for (std::string k = key; !k.empty() && !v;) {

@@ -174,6 +174,13 @@ TEST(SceneErrors, Sources) {
                  {"sources[0].hi is required"});
     expect_error(edit("name = \"single\"", dom + "[[sources]]\nlo = [0, 0, 0]\nhi = [1, 1, 1]\npowr = 1"), "powr",
                  {"sources[0].powr: unknown key", "did you mean 'power'?"});
+    // A check about two keys is located at the one a --set gave.
+    try {
+        load_scene_string(edit("name = \"single\"", dom + ok), "bad.toml", {"sources[0].hi=[0.5,3,3]"});
+        ADD_FAILURE() << "no error for hi < lo";
+    } catch (const Error& e) {
+        EXPECT_EQ(std::string(e.what()).rfind("bad.toml: --set sources[0].hi=[0.5,3,3]: ", 0), 0u) << e.what();
+    }
     // Emission into a band without extinction: lost by montecarlo and diffusion, kept by dom and
     // lpm, so refused; power 0 in that band is fine.
     const std::string clear_band = "[[optics]]\nname = \"clear\"\nsigma_t = 0.0\n";
