@@ -87,12 +87,11 @@ public:
         }
         refuse_diamond_dsa_beyond(d, thick);
     }
-    double memory_bytes(const Scene& s, const Decomposition& d, int nlights) const override {
+    double memory_bytes(const Scene&, const Decomposition& d, int nlights) const override {
         const dom::AngularSet ang = dom::make_angular_set(opt_);
         double per_cell = 2.0 * state_bytes_per_cell(ang, nlights);
         if (opt_.iteration == "gmres" || opt_.iteration == "gmres-plain")
             per_cell += 8.0 * ang.nmom * (std::min(opt_.max_iterations, 30) + 1);
-        (void)s;
         return per_cell * static_cast<double>(d.local().cells());
     }
 

@@ -91,21 +91,11 @@ public:
     }
 
     bool renders_image() const override { return opt_.image; }
-    // The replicated arrays (forward.h) over the whole grid: an upper bound, the run walks only
-    // the bounding box of the cloud.
+    // The limit trace_forward enforces, before the light pass.
     void check(const Scene& s, const Decomposition& d, const Medium&) const override {
-        double source_cells = 0.0;
-        for (const VolumeSource& src : volume_sources(s)) source_cells += static_cast<double>(src.cells.cells());
-        mc::check_replicated_memory(d.global().hi,
-                                    mc::replicated_bytes(static_cast<double>(d.global().cells()),
-                                                         static_cast<int>(group_by_optics(s.bands).size()),
-                                                         s.nbands(), false, source_cells),
-                                    opt_);
+        mc::check_replicated_memory(d.global().hi, replicated_bytes(s, d), opt_);
     }
-    double memory_bytes(const Scene& s, const Decomposition& d, int) const override {
-        return mc::replicated_bytes(static_cast<double>(d.global().cells()),
-                                    static_cast<int>(group_by_optics(s.bands).size()), s.nbands(), false);
-    }
+    double memory_bytes(const Scene& s, const Decomposition& d, int) const override { return replicated_bytes(s, d); }
 
     Image render(const SolveContext& ctx) override {
         ScopedTimer timer(ctx.report, "montecarlo/render");
@@ -113,6 +103,14 @@ public:
     }
 
 private:
+    // The replicated arrays of trace_forward (forward.h), as the run counts them: the whole grid.
+    static double replicated_bytes(const Scene& s, const Decomposition& d) {
+        double source_cells = 0.0;
+        for (const VolumeSource& src : volume_sources(s)) source_cells += static_cast<double>(src.cells.cells());
+        return mc::replicated_bytes(static_cast<double>(d.global().cells()),
+                                    static_cast<int>(group_by_optics(s.bands).size()), s.nbands(), false,
+                                    source_cells);
+    }
     MonteCarloOptions opt_;
 };
 

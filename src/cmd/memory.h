@@ -14,7 +14,7 @@ namespace nimbus::cmd {
 
 struct MemoryEstimate {
     double bytes = 0;  // on this rank
-    std::string what;  // what the figure covers, e.g. "light pass, render, model dom 1.2 GiB"
+    std::string what;  // what the figure covers, e.g. "light pass, render, model dom 677 MiB"
     bool replicated = false;  // the model copies the whole grid to every rank (Monte Carlo)
 };
 
