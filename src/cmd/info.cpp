@@ -2,12 +2,14 @@
 // rank, which models suit it. Cheap: builds the density and sums columns, solves nothing. It
 // makes the checks a run makes before computing (the scene, the model is in this build), and
 // estimates the memory before it allocates anything: a grid that would not fit is reported as
-// such, without building its density.
+// such, without building its density. The description is the command's output: rank 0 prints it
+// to stdout (`nimbus info scene.toml > scene.txt`); warnings and errors go to the log (stderr).
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <new>
 #include <utility>
 
@@ -16,7 +18,6 @@
 #include "src/cmd/commands.h"
 #include "src/cmd/memory.h"
 #include "src/core/error.h"
-#include "src/core/log.h"
 #include "src/physics/lights.h"
 #include "src/pipeline/pipeline.h"
 #include "src/scene/emission.h"
@@ -25,6 +26,16 @@
 namespace nimbus::cmd {
 namespace {
 
+// One line of the description, printed by rank 0.
+template <class... Args>
+void say(MPI_Comm comm, fmt::format_string<Args...> f, Args&&... a) {
+    int rank = 0;
+    MPI_Comm_rank(comm, &rank);
+    if (rank != 0) return;
+    std::fputs((fmt::format(f, std::forward<Args>(a)...) + "\n").c_str(), stdout);
+    std::fflush(stdout);
+}
+
 void info(const RunOptions& opts) {
     MPI_Comm comm = MPI_COMM_WORLD;
     const Scene s = load_run_scene(comm, opts);
@@ -32,21 +43,21 @@ void info(const RunOptions& opts) {
     const Decomposition d(comm, s.grid.n, s.grid.process_grid, s.grid.periodic);
     const auto lights = make_lights(s);
     const MemoryEstimate mem = estimate_memory(s, d);
-    const auto log_grid = [&] {
-        log::info("scene: {} ({})", s.title, s.source);
-        log::info("grid: {} x {} x {} = {} cells, cell {} m, domain {:.4g} x {:.4g} x {:.4g} m", s.grid.n[0],
+    const auto say_grid = [&] {
+        say(comm, "scene: {} ({})", s.title, s.source);
+        say(comm, "grid: {} x {} x {} = {} cells, cell {} m, domain {:.4g} x {:.4g} x {:.4g} m", s.grid.n[0],
                   s.grid.n[1], s.grid.n[2], d.global().cells(), s.grid.h(), s.grid.n[0] * s.grid.h(),
                   s.grid.n[1] * s.grid.h(), s.grid.n[2] * s.grid.h());
-        log::info("decomposition: {}; largest rank box {} cells", d.describe(), d.local().cells());
+        say(comm, "decomposition: {}; largest rank box {} cells", d.describe(), d.local().cells());
     };
-    const auto log_memory = [&] {
-        log::info("memory estimate per rank ({}): {:.1f} MiB", mem.what, mem.bytes / (1 << 20));
+    const auto say_memory = [&] {
+        say(comm, "memory estimate per rank ({}): {:.1f} MiB", mem.what, mem.bytes / (1 << 20));
     };
     try {
         check_memory_fits(comm, mem);
     } catch (const Error&) {
-        log_grid();
-        log_memory();
+        say_grid();
+        say_memory();
         throw;
     }
     Field<double> rho;
@@ -93,23 +104,23 @@ void info(const RunOptions& opts) {
     double cmax = 0, csum = 0, ccount = 0;
     for (double c : colsum) { cmax = std::max(cmax, c); if (c > 0) { csum += c; ccount += 1; } }
 
-    log_grid();
-    log::info("medium: {}; {:.1f}% of cells non-empty; {}", to_string(s.medium.kind),
+    say_grid();
+    say(comm, "medium: {}; {:.1f}% of cells non-empty; {}", to_string(s.medium.kind),
               100.0 * filled / static_cast<double>(d.global().cells()),
               filled > 0 ? fmt::format("bounding box of non-empty cells [{}, {}) x [{}, {}) x [{}, {})", bb.lo[0],
                                        bb.hi[0], bb.lo[1], bb.hi[1], bb.lo[2], bb.hi[2])
                          : std::string("no non-empty cells"));
     for (const auto& b : s.bands) {
-        log::info("band '{}': sigma_t {} /m, albedo {}, g {}; vertical optical depth max {:.3g}, mean over "
+        say(comm, "band '{}': sigma_t {} /m, albedo {}, g {}; vertical optical depth max {:.3g}, mean over "
                   "cloudy columns {:.3g}; max cell optical depth kappa*h {:.3g}; transport depth (1 - a g) "
                   "times max {:.3g}",
                   b.name, b.sigma_t, b.albedo, b.g, b.sigma_t * cmax,
                   ccount > 0 ? b.sigma_t * csum / ccount : 0.0, b.sigma_t * rho_max * s.grid.h(),
                   b.sigma_t * cmax * (1 - b.albedo * b.g));
     }
-    log::info("light terms: {} (sun {}, sky bins {})", lights.size(), s.sun.enabled ? "on" : "off",
+    say(comm, "light terms: {} (sun {}, sky bins {})", lights.size(), s.sun.enabled ? "on" : "off",
               s.sky.radiance.empty() ? 0 : s.sky.directions);
-    log_memory();
+    say_memory();
     const double tau = s.bands.empty() ? 0 : s.bands[0].sigma_t * cmax * (1 - s.bands[0].albedo * s.bands[0].g);
     std::string advice = tau < 0.3 ? "optically thin: 'single' is close to exact"
                        : tau < 3   ? "intermediate: multiple scattering matters; 'montecarlo' is the reference"
@@ -120,8 +131,8 @@ void info(const RunOptions& opts) {
                              "'montecarlo' model them ('montecarlo' is the reference; 'diffusion' has no "
                              "transport across empty cells); optical depth: {}",
                              s.sources.size(), tau < 0.3 ? "thin" : tau < 3 ? "intermediate" : "thick");
-    log::info("models in this build: {}; this scene is {}", fmt::format("{}", fmt::join(available_models(), ", ")), advice);
-    log::info("model asked for: '{}'", s.model.name);
+    say(comm, "models in this build: {}; this scene is {}", fmt::format("{}", fmt::join(available_models(), ", ")), advice);
+    say(comm, "model asked for: '{}'", s.model.name);
     // The checks a run makes once the density exists, before its light pass (pipeline.cpp).
     Medium m;
     m.grid = make_grid(s.grid);
