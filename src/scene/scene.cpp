@@ -145,13 +145,13 @@ void Scene::validate() const {
     const Vec3 view = camera.look_at - camera.position;
     require(norm(view) > 0, "camera.look_at equals camera.position: the camera looks at nothing");
     require(norm(cross(view, camera.up)) > 1e-9 * norm(view) * norm(camera.up),
-            "camera.up is parallel to the view direction");
+            "camera.up is parallel to the view direction camera.look_at - camera.position");
     if (output.image) {
         const double h = grid.h();
         require(camera_sees_domain(camera, grid),
                 fmt::format("camera.look_at: the camera looks at nothing: the domain [0, {:.4g}] x [0, {:.4g}] x "
-                            "[0, {:.4g}] m is outside its field of view (check camera.position, look_at, fov and "
-                            "units)",
+                            "[0, {:.4g}] m is outside its field of view (check camera.position, camera.look_at, "
+                            "camera.fov and units)",
                             grid.n[0] * h, grid.n[1] * h, grid.n[2] * h));
     }
     require_bands(background.color, nbands(), "background.color");

@@ -111,6 +111,20 @@ TEST(SceneErrors, CameraLookingAtNothing) {
                  {"camera.look_at equals camera.position"});
 }
 
+// camera.up parallel to the view is located at camera.up in the file, and at the --set that
+// made it so when the user turned look_at (the message names the keys of the view direction).
+TEST(SceneErrors, CameraUpParallelToView) {
+    expect_error(edit("look_at = [0.5, 0.5, 0.5]", "look_at = [0.5, 0.5, 0.5]\nup = [0, 1, 0]"), "up = [0, 1, 0]",
+                 {"camera.up is parallel to the view direction"});
+    try {
+        load_scene_string(kBase, "bad.toml", {"camera.look_at=[0.5,-1,2.5]"});
+        ADD_FAILURE() << "no error for camera.up along the view";
+    } catch (const Error& e) {
+        EXPECT_EQ(std::string(e.what()).rfind("bad.toml: --set camera.look_at=[0.5,-1,2.5]: camera.look_at: "
+                                              "camera.up is parallel to the view direction", 0), 0u) << e.what();
+    }
+}
+
 // A camera whose view misses the domain is refused when the scene is loaded (run and info
 // alike), at the camera's keys; without an image there is nothing to see and no error.
 TEST(SceneErrors, CameraSeeingNoDomain) {
