@@ -129,7 +129,8 @@ void print_table(const nlohmann::json& r) {
 
 void add_compare_command(CLI::App& app) {
     auto args = std::make_shared<CompareArgs>();
-    CLI::App* cmd = app.add_subcommand("compare", "error of run A against reference run B (HDF5 outputs)");
+    CLI::App* cmd = app.add_subcommand(
+        "compare", "Report the error of run A against reference run B (HDF5 fields, optionally images).");
     cmd->add_option("A", args->a,
                     "the run to assess: the HDF5 file nimbus run wrote (<scene>.h5; nimbus.h5 for the "
                     "built-in scene)")
