@@ -1,10 +1,13 @@
 #include "solvers/lpm/lpm.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <numeric>
 
 #include "solvers/lpm/angular.h"
 #include "solvers/lpm/solve_band.h"
+#include "solvers/lpm/tail.h"
 #include "src/core/error.h"
 #include "src/core/log.h"
 #include "src/core/progress.h"
@@ -29,10 +32,16 @@ public:
     double memory_bytes(const Scene&, const Decomposition& d, int) const override {
         return (186.0 + 8.0 * 6 * opt_.k * opt_.k) * static_cast<double>(d.local().cells());
     }
+    // Before the light pass: what the map sweeps need of the decomposition, and the tail's solver.
+    void check(const Scene&, const Decomposition& d, const Medium&) const override {
+        check_decomposition(d);
+        if (opt_.tail == "diffusion" && !lpm::diffusion_tail_available())
+            throw Error("model.lpm.tail = \"diffusion\" needs the diffusion model in the build (NIMBUS_MODELS "
+                        "with diffusion listed before lpm); use tail = \"geometric\" or \"none\"");
+    }
     void solve(const SolveContext& ctx, DiffuseSolution& out) override {
         const Decomposition& d = ctx.decomp;
-        check_collective(d.comm(), d.is_slab_z() && !d.periodic(2),
-                         "model lpm needs slabs along z (grid.process_grid = [1, 1, P]) and z not periodic");
+        check_decomposition(d);
         check_collective(d.comm(), ctx.medium.rho.ghost() == 1 && ctx.medium.rho.owned() == d.local(),
                          "model lpm: density must cover the rank's box with one ghost layer");
         ScopedTimer timer(ctx.report, "lpm");
@@ -77,6 +86,12 @@ public:
     }
 
 private:
+    static void check_decomposition(const Decomposition& d) {
+        if (!(d.is_slab_z() && !d.periodic(2)))
+            throw Error(fmt::format("model lpm needs slabs along z (grid.process_grid = [1, 1, P]) and z not "
+                                    "periodic; got {}", d.describe()));
+    }
+
     LpmOptions opt_;
 };
 

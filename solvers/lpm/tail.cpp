@@ -24,6 +24,14 @@ void add_geometric_tail(Field<double>& fluence, const Field<double>& previous, d
     });
 }
 
+bool diffusion_tail_available() {
+#ifdef NIMBUS_LPM_HAVE_DIFFUSION
+    return true;
+#else
+    return false;
+#endif
+}
+
 DiffusionTail diffusion_tail(const Decomposition& d, const Medium& m, int band, const Field<double>& U,
                              const Field<double>& kappa, const Angular& ang, Report& report) {
 #ifdef NIMBUS_LPM_HAVE_DIFFUSION

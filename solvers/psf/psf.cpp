@@ -33,6 +33,7 @@ public:
         v["level_widths_m"] = widths;
     }
 
+    void check(const Scene&, const Decomposition& d, const Medium&) const override { psf::check_decomposition(d); }
     bool renders_image() const override { return true; }
     // The Gaussian pyramids: ~30 bytes per local cell per light volume (light terms x bands of
     // different sigma_t), measured on the default cloud: 271 bytes at 9 terms, ~540 at 17.

@@ -35,16 +35,25 @@ void level_pair(const LightPyramid& p, double w, int& k0, int& k1, double& f) {
 
 }  // namespace
 
+void check_decomposition(const Decomposition& d) {
+    if (!d.is_slab_z())
+        throw Error(fmt::format("model psf needs slabs along z (grid.process_grid = [1, 1, P]): its light "
+                                "pyramid and path-length pass work on z slabs; got {}",
+                                d.describe()));
+    if (d.dims()[2] > 1 && d.thinnest(2) < kLevel0Ghost)
+        throw Error(fmt::format("model psf needs at least {} z layers per rank (its light volume has {} ghost "
+                                "layers): {} layers on {} ranks leave {}; use at most {} rank{}",
+                                kLevel0Ghost, kLevel0Ghost, d.global().size(2), d.size(), d.thinnest(2),
+                                d.global().size(2) / kLevel0Ghost, d.global().size(2) / kLevel0Ghost == 1 ? "" : "s"));
+}
+
 PsfSource::PsfSource(const SolveContext& ctx, const PsfOptions& opt)
     : lights_(ctx.light.lights), step_growth_(opt.step_growth) {
     const Medium& m = ctx.medium;
     const Decomposition& d = ctx.decomp;
     // Checked here, before the light pass on the indicator below, so that its generic "the
     // light pass needs slabs" does not blame the user's light pass (which may be exact).
-    check_collective(d.comm(), d.is_slab_z(),
-                     fmt::format("model psf needs slabs along z (grid.process_grid = [1, 1, P]): its light "
-                                 "pyramid and path-length pass work on z slabs; got {}",
-                                 d.describe()));
+    check_decomposition(d);
     const int nb = m.nbands(), nl = static_cast<int>(lights_.size());
     diagonal_ = norm(m.grid.extent());
     h_ = m.grid.h;
@@ -88,7 +97,7 @@ PsfSource::PsfSource(const SolveContext& ctx, const PsfOptions& opt)
     const LightTransport s2 = compute_light_transport(d, indicator, lights_, scratch, {}, LightSpec::Method::sweep);
 
     // Level 0 of the pyramid: T per light and group; the depths tau_rho_l and s2_l.
-    Field<double> level0(d.local(), 3, nl * ngroups_, 0.0);
+    Field<double> level0(d.local(), kLevel0Ghost, nl * ngroups_, 0.0);
     depth_.n = m.grid.n;
     depth_.h = m.grid.h;
     depth_.replicated = d.size() == 1;

@@ -35,6 +35,14 @@
 
 namespace nimbus::psf {
 
+// Ghost layers of the level-0 light volume (the pyramid's first blur reaches 3 cells).
+inline constexpr int kLevel0Ghost = 3;
+
+// What the model needs of the decomposition: slabs along z, each at least kLevel0Ghost layers
+// thick (the halo exchange fills ghosts from the adjacent rank only). Throws Error on every rank
+// alike; run by the model's pre-flight check and again by PsfSource.
+void check_decomposition(const Decomposition& d);
+
 struct BandPsf {
     double sigma_s = 0.0;   // 1/m per unit density
     double a_over_b = 0.0;  // absorption / scattering

@@ -75,8 +75,6 @@ Field<float> to_float(const Field<double>& f) {
     return out;
 }
 
-int slab_lo(int n, int parts, int p) { return static_cast<int>(static_cast<long long>(n) * p / parts); }
-
 // Every rank's owned layers of a z-slab field (owned z ranges z_owned) on every rank.
 Field<double> allgather_slabs(const Field<double>& f, const Int3& n,
                               const std::vector<std::pair<int, int>>& z_owned, MPI_Comm comm) {
@@ -131,7 +129,7 @@ LightPyramid::LightPyramid(Field<double> level0, const Grid& g, const Decomposit
         const int ghost = std::max(lv.radius, 3);
         bool distributed = !prev_replicated;
         for (int p = 0; p < P && distributed; ++p)
-            distributed = slab_lo(lv.n[2], P, p + 1) - slab_lo(lv.n[2], P, p) >= ghost + 1;
+            distributed = Decomposition::split_lo(lv.n[2], P, p + 1) - Decomposition::split_lo(lv.n[2], P, p) >= ghost + 1;
         const std::vector<double> kern = gaussian_kernel(lv.sigma, lv.radius);
         Field<double> cur;
         if (distributed) {

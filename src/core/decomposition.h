@@ -41,8 +41,13 @@ public:
 
     std::string describe() const;  // e.g. "2 ranks as 1x1x2 (slabs along z)"
 
-private:
+    // First cell of part p when n cells are split into `parts` nearly equal parts (the split of
+    // every axis; parts differ by at most one cell).
     static int split_lo(int n, int parts, int p) { return static_cast<int>((long long)n * p / parts); }
+    // Cells along `axis` of the thinnest rank box (the split gives floor(n / ranks) or one more).
+    int thinnest(int axis) const { return (global_.hi[axis] - global_.lo[axis]) / dims_[axis]; }
+
+private:
 
     std::shared_ptr<MPI_Comm> comm_;
     int rank_ = 0, size_ = 1;

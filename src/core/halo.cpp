@@ -1,6 +1,10 @@
 #include "src/core/halo.h"
 
+#include <fmt/format.h>
+
 #include <vector>
+
+#include "src/core/error.h"
 
 namespace nimbus {
 namespace {
@@ -28,10 +32,17 @@ void exchange_halo(Field<double>& f, const Decomposition& d) {
     const int g = f.ghost();
     if (g == 0) return;
     const Box& own = f.owned();
+    // Every ghost comes from the adjacent rank: each box must be at least g cells thick. The
+    // boxes are known everywhere, so every rank throws alike (no rank left waiting).
+    for (int axis = 0; axis < 3; ++axis)
+        if (d.dims()[axis] > 1 && d.thinnest(axis) < g)
+            throw Error(fmt::format("a field with {} ghost layers needs every rank's box at least {} cells thick "
+                                    "along {}, but {} ranks split its {} cells into boxes of {}; use fewer ranks",
+                                    g, g, "xyz"[axis], d.dims()[axis], d.global().size(axis), d.thinnest(axis)));
     std::vector<double> send, recv;
     for (int axis = 0; axis < 3; ++axis) {
         const int lo_nb = d.neighbor(axis, -1), hi_nb = d.neighbor(axis, +1);
-        const int depth = std::min(g, own.size(axis));
+        const int depth = std::min(g, own.size(axis));  // own.size < g only alone on a periodic axis
         for (int dir : {+1, -1}) {
             // dir = +1: send my high layers up, receive my low ghosts from below.
             const int to = dir > 0 ? hi_nb : lo_nb, from = dir > 0 ? lo_nb : hi_nb;

@@ -2,6 +2,9 @@
 // value, wraps periodic axes, and leaves ghosts outside a closed domain untouched.
 #include <gtest/gtest.h>
 
+#include <string>
+
+#include "src/core/error.h"
 #include "src/core/halo.h"
 #include "tests/support/mpi_test.h"
 
@@ -10,10 +13,9 @@ namespace {
 
 double code(int i, int j, int k) { return i + 100.0 * j + 10000.0 * k; }
 
-void check_halo(const Int3& dims, std::array<bool, 3> periodic) {
-    const Int3 n{6, 5, 8};
+void check_halo(const Int3& dims, std::array<bool, 3> periodic, const Int3& n = {6, 5, 8}, int ghost = 2) {
     const Decomposition d(MPI_COMM_WORLD, n, dims, periodic);
-    Field<double> f(d.local(), 2, 2, -1.0);
+    Field<double> f(d.local(), ghost, 2, -1.0);
     for_each_cell(d.local(), [&](int i, int j, int k) {
         f(i, j, k, 0) = code(i, j, k);
         f(i, j, k, 1) = -code(i, j, k);
@@ -36,6 +38,33 @@ TEST(Halo, SlabsAlongZ) { check_halo({1, 1, 0}, {false, false, false}); }
 TEST(Halo, SlabsAlongX) { check_halo({0, 1, 1}, {false, false, false}); }
 TEST(Halo, PeriodicXY) { check_halo({1, 1, 0}, {true, true, false}); }
 TEST(Halo, PeriodicZAcrossRanks) { check_halo({1, 1, 0}, {false, false, true}); }
+
+// Ghosts come from the adjacent rank only: 3 ghost layers need boxes at least 3 cells thick.
+// 5 z layers: one rank fills them; 2 or more ranks (boxes of 2 or fewer) are refused on every
+// rank with the same error (a thicker rank used to send more layers than its neighbour
+// expected: MPI_ERR_TRUNCATE, or misplaced ghosts).
+TEST(Halo, GhostsDeeperThanTheThinnestBoxAreRefused) {
+    const Int3 n{4, 3, 5};
+    const Decomposition d(MPI_COMM_WORLD, n, {1, 1, 0});
+    if (d.size() == 1) {
+        check_halo({1, 1, 0}, {false, false, false}, n, 3);
+        return;
+    }
+    Field<double> f(d.local(), 3, 1, 0.0);
+    try {
+        exchange_halo(f, d);
+        ADD_FAILURE() << "no error for 3 ghost layers on boxes of " << d.thinnest(2) << " layers";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("needs every rank's box at least 3 cells thick along z"),
+                  std::string::npos) << e.what();
+    }
+}
+
+// Deeper ghosts across ranks whose boxes are thick enough (12 layers: boxes of 3 or more on up
+// to 4 ranks), periodic z wrapping them.
+TEST(Halo, ThreeGhostLayersAcrossRanks) {
+    check_halo({1, 1, 0}, {false, false, true}, {4, 3, 12}, 3);
+}
 
 }  // namespace
 }  // namespace nimbus
