@@ -48,7 +48,9 @@ void info(const RunOptions& opts) {
         say(comm, "grid: {} x {} x {} = {} cells, cell {} m, domain {:.4g} x {:.4g} x {:.4g} m", s.grid.n[0],
                   s.grid.n[1], s.grid.n[2], d.global().cells(), s.grid.h(), s.grid.n[0] * s.grid.h(),
                   s.grid.n[1] * s.grid.h(), s.grid.n[2] * s.grid.h());
-        say(comm, "decomposition: {}; largest rank box {} cells", d.describe(), d.local().cells());
+        long long largest = 0;
+        for (int p = 0; p < d.size(); ++p) largest = std::max(largest, static_cast<long long>(d.box_of(p).cells()));
+        say(comm, "decomposition: {}; largest rank box {} cells", d.describe(), largest);
     };
     const auto say_memory = [&] {
         say(comm, "memory estimate per rank ({}): {:.1f} MiB", mem.what, mem.bytes / (1 << 20));
@@ -84,7 +86,7 @@ void info(const RunOptions& opts) {
     Box bb{{1 << 30, 1 << 30, 1 << 30}, {-1, -1, -1}};
     for_each_cell(own, [&](int i, int j, int k) {
         const double r = rho(i, j, k);
-        col[static_cast<size_t>(j - own.lo[1]) * nx + (i - own.lo[0])] += r * s.grid.h();
+        col[static_cast<size_t>(j) * nx + i] += r * s.grid.h();  // global column: x/y may be split too
         rho_max = std::max(rho_max, r);
         if (r > 0) {
             filled += 1;

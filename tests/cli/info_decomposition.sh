@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# `nimbus info` describes the scene, not the decomposition: its optical depths (column sums
+# reduced over ranks) are the same whether the ranks split z, x or y, and the largest rank box
+# is the largest of all ranks'.
+set -u
+nimbus=$1 mpiexec=$2 np=$3 scenes=$4
+pass=0 fail=0
+describe() {  # the scene's lines of info for one process grid
+  timeout 120 "$mpiexec" -n "$np" "$nimbus" info "$scenes/smoke.toml" --set "grid.n=[32,32,31]" \
+    --set "grid.process_grid=$1" 2>/dev/null | grep -E "^(band|medium)"
+}
+ref=$(describe "[1,1,$np]")
+for pg in "[$np,1,1]" "[1,$np,1]"; do
+  out=$(describe "$pg")
+  if [ -n "$ref" ] && [ "$out" = "$ref" ]; then pass=$((pass + 1)); else
+    fail=$((fail + 1)); echo "FAIL: info with process_grid $pg differs from z slabs"; diff <(echo "$ref") <(echo "$out"); fi
+done
+# 31 layers on 2 ranks: boxes of 15 and 16 layers; the largest is 32 x 32 x 16.
+if [ "$np" -eq 2 ]; then
+  out=$(timeout 120 "$mpiexec" -n 2 "$nimbus" info "$scenes/smoke.toml" --set "grid.n=[32,32,31]" 2>/dev/null)
+  if echo "$out" | grep -q "largest rank box 16384 cells"; then pass=$((pass + 1)); else
+    fail=$((fail + 1)); echo "FAIL: largest rank box"; echo "$out" | grep decomposition; fi
+fi
+echo "$pass passed, $fail failed"
+[ $fail -eq 0 ]
