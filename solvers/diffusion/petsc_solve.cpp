@@ -26,27 +26,15 @@ void check(PetscErrorCode ierr, const char* what) { petsc::check(ierr, "diffusio
 
 void ensure_petsc(MPI_Comm comm) { petsc::ensure_initialized(comm); }
 
-// Owning handles, destroyed in reverse order of declaration.
-struct OptionsHandle {
-    PetscOptions o = nullptr;
-    ~OptionsHandle() { if (o) PetscOptionsDestroy(&o); }
-};
+// The DMDA's owning handle (the others: petsc_support.h), destroyed in reverse order of declaration.
 struct DMHandle {
     DM dm = nullptr;
     ~DMHandle() { if (dm) DMDestroy(&dm); }
 };
-struct MatHandle {
-    Mat m = nullptr;
-    ~MatHandle() { if (m) MatDestroy(&m); }
-};
-struct VecHandle {
-    Vec v = nullptr;
-    ~VecHandle() { if (v) VecDestroy(&v); }
-};
-struct KSPHandle {
-    KSP ksp = nullptr;
-    ~KSPHandle() { if (ksp) KSPDestroy(&ksp); }
-};
+using petsc::KSPHandle;
+using petsc::MatHandle;
+using petsc::OptionsHandle;
+using petsc::VecHandle;
 
 }  // namespace
 
@@ -85,9 +73,9 @@ LinearSolveOutput solve_with_petsc(const Decomposition& d, const Assembler& asse
     check(DMSetUp(da.dm), "DMSetUp");
     PetscInt xs, ys, zs, xm, ym, zm;
     check(DMDAGetCorners(da.dm, &xs, &ys, &zs, &xm, &ym, &zm), "DMDAGetCorners");
-    if (xs != own.lo[0] || ys != own.lo[1] || zs != own.lo[2] || xm != own.size(0) ||
-        ym != own.size(1) || zm != own.size(2))
-        throw Error("diffusion (petsc): DMDA ownership differs from the decomposition");
+    check_collective(comm, xs == own.lo[0] && ys == own.lo[1] && zs == own.lo[2] && xm == own.size(0) &&
+                               ym == own.size(1) && zm == own.size(2),
+                     "diffusion (petsc): DMDA ownership differs from the decomposition");
 
     MatHandle A;
     check(DMCreateMatrix(da.dm, &A.m), "DMCreateMatrix");

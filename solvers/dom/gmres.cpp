@@ -31,9 +31,11 @@ struct ShellContext {
     SweepSource scatter_only; // no lights
     SweepOutput out;
     int sweeps = 0;
+    std::string failure;  // a sweep's error (collective: every rank fails together), rethrown after
 };
 
-// y = x - K x.
+// y = x - K x. An error must not unwind through PETSc's C frames: a failed sweep is recorded,
+// y = x returned, and the convergence test stops the solve (as dsa_apply does).
 PetscErrorCode shell_mult(Mat A, Vec x, Vec y) {
     ShellContext* c = nullptr;
     PetscCall(MatShellGetContext(A, &c));
@@ -45,7 +47,19 @@ PetscErrorCode shell_mult(Mat A, Vec x, Vec y) {
     double* s = c->s.data();
     for (size_t q = 0; q < ncell; ++q)
         for (int k = 0; k < nmom; ++k) s[q * nmom + k] = ss[q] * c->chi[static_cast<size_t>(k)] * xv[q * nmom + k];
-    c->sweeper->sweep(c->scatter_only, c->out);
+    if (!c->failure.empty()) {
+        PetscCall(VecRestoreArrayRead(x, &xv));
+        PetscCall(VecCopy(x, y));
+        return 0;
+    }
+    try {
+        c->sweeper->sweep(c->scatter_only, c->out);
+    } catch (const Error& e) {
+        c->failure = e.what();
+        PetscCall(VecRestoreArrayRead(x, &xv));
+        PetscCall(VecCopy(x, y));
+        return 0;
+    }
     ++c->sweeps;
     PetscScalar* yv = nullptr;
     PetscCall(VecGetArray(y, &yv));
@@ -62,6 +76,7 @@ struct KrylovContext {
     int nmom = 0;
     DiffusionSynthetic* dsa = nullptr;  // null: no preconditioner
     Report* report = nullptr;
+    const std::string* sweep_failure = nullptr;  // ShellContext::failure
     Field<double> r0;                   // fluence change handed to the DSA solve
     int dsa_iterations = 0;
     std::string failure;  // a DSA solve's error: reported by the convergence test, rethrown after
@@ -107,7 +122,7 @@ PetscErrorCode dsa_apply(PC pc, Vec x, Vec y) {
 PetscErrorCode converged_test(KSP ksp, PetscInt it, PetscReal rnorm, KSPConvergedReason* reason, void* ctx) {
     auto* c = static_cast<KrylovContext*>(ctx);
     *reason = KSP_CONVERGED_ITERATING;
-    if (!c->failure.empty()) {
+    if (!c->failure.empty() || !c->sweep_failure->empty()) {
         *reason = KSP_DIVERGED_PC_FAILED;
         return 0;
     }
@@ -143,7 +158,7 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     const Box& own = d.local();
     const int nmom = ang.nmom;
     const PetscInt nloc = static_cast<PetscInt>(own.cells() * nmom);
-    ShellContext c{&sweeper, &ang, &p, {}, Field<double>(own, 0, nmom, 0.0), {}, {}, 0};
+    ShellContext c{&sweeper, &ang, &p, {}, Field<double>(own, 0, nmom, 0.0), {}, {}, 0, {}};
     for (int k = 0; k < nmom; ++k) {
         const int l = ang.degree[static_cast<size_t>(k)];
         c.chi.push_back(l < static_cast<int>(p.phase.chi.size()) ? p.phase.chi[static_cast<size_t>(l)] : 0.0);
@@ -164,24 +179,29 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     for (std::ptrdiff_t q = 0; q < own.cells(); ++q) c.s.data()[q * nmom] = y0inv * p.emission.data()[q];
     sweeper.sweep(external, out);
 
-    Vec b = nullptr, x = nullptr;
-    Mat A = nullptr;
-    KSP ksp = nullptr;
-    check(VecCreateMPI(comm, nloc, PETSC_DETERMINE, &b), "VecCreateMPI");
-    check(VecDuplicate(b, &x), "VecDuplicate");
+    // Owning handles (petsc_support.h): nothing leaks when a check or the DSA set-up throws.
+    petsc::VecHandle bh, xh, work;
+    petsc::MatHandle Ah;
+    petsc::KSPHandle kh;
+    check(VecCreateMPI(comm, nloc, PETSC_DETERMINE, &bh.v), "VecCreateMPI");
+    check(VecDuplicate(bh.v, &xh.v), "VecDuplicate");
+    const Vec b = bh.v, x = xh.v;
     {
         PetscScalar* bv = nullptr;
         check(VecGetArray(b, &bv), "VecGetArray");
         std::copy(out.phi.data(), out.phi.data() + nloc, bv);
         check(VecRestoreArray(b, &bv), "VecRestoreArray");
     }
-    check(MatCreateShell(comm, nloc, nloc, PETSC_DETERMINE, PETSC_DETERMINE, &c, &A), "MatCreateShell");
+    check(MatCreateShell(comm, nloc, nloc, PETSC_DETERMINE, PETSC_DETERMINE, &c, &Ah.m), "MatCreateShell");
+    const Mat A = Ah.m;
     check(MatShellSetOperation(A, MATOP_MULT, reinterpret_cast<void (*)(void)>(shell_mult)), "MatShellSetOperation");
-    check(KSPCreate(comm, &ksp), "KSPCreate");
+    check(KSPCreate(comm, &kh.ksp), "KSPCreate");
+    const KSP ksp = kh.ksp;
     check(KSPSetOperators(ksp, A, A), "KSPSetOperators");
     check(KSPSetType(ksp, KSPGMRES), "KSPSetType");
     check(KSPGMRESSetRestart(ksp, 30), "KSPGMRESSetRestart");
     KrylovContext kc;
+    kc.sweep_failure = &c.failure;
     kc.own = &own;
     kc.nmom = nmom;
     kc.report = &report;
@@ -207,7 +227,8 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     check(KSPSetPCSide(ksp, PC_LEFT), "KSPSetPCSide");
     check(KSPSetNormType(ksp, KSP_NORM_PRECONDITIONED), "KSPSetNormType");
     check(KSPSetTolerances(ksp, tolerance, 0.0, 1e300, max_iterations), "KSPSetTolerances");
-    check(VecDuplicate(b, &kc.work), "VecDuplicate");
+    check(VecDuplicate(b, &work.v), "VecDuplicate");
+    kc.work = work.v;
     check(KSPSetConvergenceTest(ksp, converged_test, &kc, nullptr), "KSPSetConvergenceTest");
     // Initial guess 0: the first residual is b without a sweep (measured on the tau-100 cube:
     // the same 5 iterations as from phi = b, one sweep fewer).
@@ -229,11 +250,7 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
         std::copy(xv, xv + nloc, phi.data());
         VecRestoreArrayRead(x, &xv);
     }
-    KSPDestroy(&ksp);
-    MatDestroy(&A);
-    VecDestroy(&x);
-    VecDestroy(&b);
-    VecDestroy(&kc.work);
+    if (!c.failure.empty()) throw Error(c.failure);
     if (!kc.failure.empty()) throw Error(kc.failure);
     check(solve_err, "KSPSolve");
     const size_t ncell = static_cast<size_t>(own.cells());
