@@ -35,6 +35,11 @@ public:
     // Before the light pass: what the map sweeps need of the decomposition, and the tail's solver.
     void check(const Scene&, const Decomposition& d, const Medium&) const override {
         check_decomposition(d);
+        if (opt_.p % 2 == 1 && (d.periodic(0) || d.periodic(1)) && d.rank() == 0)
+            log::warn("model.lpm.p = {} is odd: the X and Y maps' horizontal rays never leave the periodic "
+                      "layers and deposit all their light there (several times too much fluence on thin or "
+                      "localized media); use an even p",
+                      opt_.p);
         if (opt_.tail == "diffusion" && !lpm::diffusion_tail_available())
             throw Error("model.lpm.tail = \"diffusion\" needs the diffusion model in the build (NIMBUS_MODELS "
                         "with diffusion listed before lpm); use tail = \"geometric\" or \"none\"");

@@ -71,7 +71,7 @@ void DomOptions::validate() const {
 }
 
 void LpmOptions::validate() const {
-    if (p < 1 || p % 2 == 0) throw Error("model.lpm.p must be odd and >= 1 (p x p directions per map)");
+    if (p < 1) throw Error("model.lpm.p must be >= 1 (p x p directions per map)");
     if (refinement < 1) throw Error("model.lpm.refinement must be >= 1");
     if (k < 1) throw Error("model.lpm.k must be >= 1");
     if (p % k != 0) throw Error("model.lpm.k must divide model.lpm.p (each map bin inside one coarse bin, Fattal 2009 §3.3)");

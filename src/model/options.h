@@ -64,7 +64,7 @@ struct DomOptions {
 
 // Light propagation maps (solvers/lpm, Fattal 2009).
 struct LpmOptions {
-    int p = 5;                  // directions per map: p x p
+    int p = 6;                  // directions per map: p x p (even: no horizontal rays, solvers/lpm/lpm.h)
     int refinement = 1;         // map rays per grid cell along each map axis
     int k = 1;                  // coarse angular bins of the unpropagated field U: 6 k^2 (p % k == 0)
     int solution_bins = 1;      // solution moments: 1 = fluence only, 4 = fluence + flux F

@@ -98,5 +98,46 @@ TEST(LpmSlab, ForwardScatteringAgainstReference) {
     }
 }
 
+// A thin periodic layer between vacuum (tau 0.25 in 4 of 8 cells, 8 x 8 periodic columns,
+// albedo 0.9, isotropic, sun overhead): the mean fluence in the layer over the reference's.
+double thin_layer_fluence_ratio(int p) {
+    const int nz = 8, lo = 2, hi = 6;
+    const double tau0 = 0.25;
+    LpmWorld w(MPI_COMM_SELF, {8, 8, nz}, {true, true, false}, [&](int, int, int k) { return k >= lo && k < hi ? 1.0 : 0.0; },
+               BandOptics{"gray", tau0 / (hi - lo), 0.9, 0.0}, {beam(1.0)});
+    const lpm::BandResult r = w.solve(lpm_options(p, 1, 8, 1e-4));
+    test::SlabProblem sp{tau0, 0.9, 0.0, 1.0};
+    sp.profile_levels = 2 * (hi - lo);
+    const test::SlabSolution ref = test::solve_slab(sp);
+    double got = 0.0, want = 0.0;
+    for_each_cell(w.d.local(), [&](int i, int j, int k) {
+        if (k < lo || k >= hi) return;
+        const size_t l = static_cast<size_t>(2 * (hi - 1 - k));
+        want += (ref.fluence[l] + 4.0 * ref.fluence[l + 1] + ref.fluence[l + 2]) / 6.0;
+        got += r.fluence(i, j, k);
+    });
+    return got / want;
+}
+
+// With odd p the X and Y maps have a row of exactly horizontal rays that never leave the layer
+// and cycle round the periodic axes until their light is deposited: measured 1.60, 1.23, 1.06
+// times the reference at p = 3, 5, 9. Even p has no such row; the near-horizontal bins' light
+// leaves a little early, so it errs low and converges from below: 0.834, 0.902, 0.949 at p = 4,
+// 6, 8. The default p is even and within 12% here (0.90).
+TEST(LpmSlab, ThinPeriodicLayerEvenP) {
+    double previous = 0.0;
+    for (int p : {4, 6, 8}) {
+        const double ratio = thin_layer_fluence_ratio(p);
+        if (test::world_rank() == 0) std::printf("    thin layer p %d: mean fluence / reference %.4f\n", p, ratio);
+        EXPECT_LT(ratio, 1.0) << "p " << p;
+        EXPECT_GT(ratio, previous) << "p " << p;  // converges from below
+        previous = ratio;
+    }
+    const int p_default = LpmOptions{}.p;
+    EXPECT_EQ(p_default % 2, 0);
+    const double ratio = thin_layer_fluence_ratio(p_default);
+    EXPECT_NEAR(ratio, 1.0, 0.12) << "default p " << p_default;
+}
+
 }  // namespace
 }  // namespace nimbus
