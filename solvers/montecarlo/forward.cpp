@@ -29,19 +29,25 @@ std::vector<std::int64_t> photons_per_light(const std::vector<double>& power, st
     std::vector<std::int64_t> n(power.size(), 0);
     std::vector<bool> free(power.size(), false);  // not (yet) held at the minimum
     for (size_t l = 0; l < power.size(); ++l) free[l] = power[l] > 0;
+    // Shares relative to the largest power, so that the sums below cannot overflow.
+    const double pmax = power.empty() ? 0.0 : *std::max_element(power.begin(), power.end());
+    if (!(pmax < std::numeric_limits<double>::infinity()))
+        throw Error(fmt::format("montecarlo: light powers must be finite (largest {} W)", pmax));
+    std::vector<double> rel(power.size(), 0.0);
+    for (size_t l = 0; l < power.size(); ++l) rel[l] = pmax > 0 ? power[l] / pmax : 0.0;
     // Lights whose share falls below the minimum get exactly `batches`; the rest share what is
     // left in proportion to their power (repeat until no share falls below the minimum).
     for (;;) {
         double sum = 0.0;
         std::int64_t left = total;
         for (size_t l = 0; l < power.size(); ++l) {
-            if (free[l]) sum += power[l];
+            if (free[l]) sum += rel[l];
             else if (power[l] > 0) left -= batches;
         }
         if (sum <= 0) break;
         bool changed = false;
         for (size_t l = 0; l < power.size(); ++l)
-            if (free[l] && static_cast<double>(left) * power[l] / sum < batches) free[l] = false, changed = true;
+            if (free[l] && static_cast<double>(left) * rel[l] / sum < batches) free[l] = false, changed = true;
         if (changed) continue;
         // Largest remainder: floor of each share, the leftover photons one each to the largest
         // fractional parts (ties to the lower index), so the counts sum to `total` exactly.
@@ -49,7 +55,7 @@ std::vector<std::int64_t> photons_per_light(const std::vector<double>& power, st
         std::int64_t assigned = 0;
         for (size_t l = 0; l < power.size(); ++l) {
             if (!free[l]) continue;
-            const double share = static_cast<double>(left) * power[l] / sum;
+            const double share = static_cast<double>(left) * rel[l] / sum;
             n[l] = static_cast<std::int64_t>(std::floor(share));
             assigned += n[l];
             rem.emplace_back(share - static_cast<double>(n[l]), l);
@@ -182,6 +188,16 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
         for (int b = 0; b < nb; ++b) p += emitters.back().total_power(b);
         power.push_back(p);
     }
+    // A power that overflows (e.g. irradiance x area beyond 1.8e308 W) would make every share
+    // NaN; every rank has the same powers, so every rank throws alike.
+    for (size_t t = 0; t < power.size(); ++t)
+        if (!std::isfinite(power[t]))
+            throw Error(fmt::format("montecarlo: the power of {} is not finite ({} W summed over bands): the "
+                                    "irradiance, radiance or source power times the area or volume overflows; "
+                                    "use smaller values or units",
+                                    t < lights.size() ? fmt::format("light term {} ('{}')", t, lights[t].name)
+                                                      : fmt::format("sources[{}]", t - lights.size()),
+                                    power[t]));
     const std::vector<std::int64_t> n_light = photons_per_light(power, opt.photons, B);
     const size_t nl = lights.size(), nt = nl + emitters.size();  // light terms, all terms
 

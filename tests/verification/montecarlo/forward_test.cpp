@@ -10,6 +10,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <numbers>
 #include <vector>
 
@@ -169,6 +170,18 @@ TEST(SlabAgainstReference, EveryCaseOfTheIssuesGrid) {
 // A cloud-like blob, no periodic axes, sun and sky: every watt that enters is absorbed or
 // escapes. Exactly (round-off) when roulette's zero-mean weight change is counted, and to
 // 1e-3 without it.
+// The photon budget split over light terms: proportional to power by largest remainder, at
+// least one photon per batch for a lit term, counts summing to the budget; powers whose sum
+// overflows a double still split; a non-finite power is an error (it used to loop forever on
+// NaN shares).
+TEST(Forward, PhotonsPerLight) {
+    EXPECT_EQ(mc::photons_per_light({3.0, 1.0, 0.0}, 400, 4), (std::vector<std::int64_t>{300, 100, 0}));
+    EXPECT_EQ(mc::photons_per_light({1000.0, 1e-6}, 100, 4), (std::vector<std::int64_t>{96, 4}));
+    EXPECT_EQ(mc::photons_per_light({1.0, 1.0, 1.0}, 100, 1), (std::vector<std::int64_t>{34, 33, 33}));
+    EXPECT_EQ(mc::photons_per_light({1e308, 1e308}, 100, 4), (std::vector<std::int64_t>{50, 50}));
+    EXPECT_THROW(mc::photons_per_light({1.0, std::numeric_limits<double>::infinity()}, 100, 4), Error);
+}
+
 TEST(Forward, EnergyBalance) {
     const Int3 n{12, 10, 8};
     Decomposition d(MPI_COMM_WORLD, n);
