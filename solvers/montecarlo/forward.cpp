@@ -69,6 +69,13 @@ std::vector<std::int64_t> photons_per_light(const std::vector<double>& power, st
     return n;
 }
 
+double relative_standard_error(double s1, double s2, int K) {
+    if (K < 2) return 0.0;
+    const double m = s1 / K;
+    const double var = std::max(0.0, s2 / K - m * m) * K / (K - 1);  // unbiased sample variance
+    return m > 0 ? std::sqrt(var / K) / m : 0.0;
+}
+
 StopEta eta_to_stop(const MonteCarloOptions& opt, int done, double trace_seconds, double elapsed,
                     double rel_error) {
     const double per_batch = trace_seconds / std::max(1, done);
@@ -458,26 +465,49 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                       MPI_DOUBLE, MPI_SUM, d.comm());
         int kept = 0;
         while (kept < cnt && complete[kept] > 0) ++kept;
+        // The total diffuse power of each complete batch (its counters summed over bands).
+        std::vector<double> power_of(static_cast<size_t>(kept), 0.0);
+        for (int b = 0; b < kept; ++b)
+            for (int q = 0; q < nb; ++q)
+                power_of[static_cast<size_t>(b)] +=
+                    counters_of[static_cast<size_t>(b) * per_batch + q * ncounters + diffuse_volume];
+        // target_rel_error: the run keeps the first K batches of the layout, K the smallest batch
+        // count from kMinBatchesForTarget on whose relative error is below the target; tested
+        // batch by batch, so K (and the result) does not depend on how many batches a round has,
+        // i.e. on the rank count. Rank 0 decides (the counters are the same on every rank).
+        int target_kept = 0;
+        if (opt.target_rel_error > 0 && d.rank() == 0) {
+            double s1 = diffuse_s1, s2 = diffuse_s2;
+            for (int b = 0; b < kept && target_kept == 0; ++b) {
+                const double v = power_of[static_cast<size_t>(b)];
+                s1 += v, s2 += v * v;
+                const int K = done + b + 1;
+                if (K >= std::min(kMinBatchesForTarget, layout) && K < layout &&
+                    relative_standard_error(s1, s2, K) < opt.target_rel_error)
+                    target_kept = b + 1;
+            }
+        }
+        MPI_Bcast(&target_kept, 1, MPI_INT, 0, d.comm());
+        if (target_kept > 0) kept = target_kept;
         if (batch >= 0) end_batch(batch < done + kept);
         for (int b = 0; b < kept; ++b) {
-            double v = 0.0;
             for (int q = 0; q < nb; ++q) {
                 Counters c;
                 std::copy_n(counters_of + static_cast<size_t>(b) * per_batch + q * ncounters,
                             ncounters, c.begin());
                 all_counters.push_back(c);
-                v += c[diffuse_volume];
             }
+            const double v = power_of[static_cast<size_t>(b)];
             diffuse_s1 += v;
             diffuse_s2 += v * v;
         }
         done += kept;
         log::debug("montecarlo: round done: {} of {} batches kept ({} complete this round)", done, layout, kept);
-        // Relative standard error of the total diffuse power over the kept batches.
-        const double m = diffuse_s1 / std::max(1, done);
-        const double var =
-            std::max(0.0, diffuse_s2 / std::max(1, done) - m * m) * done / std::max(1, done - 1);
-        res.rel_error = m > 0 ? std::sqrt(var / std::max(1, done)) / m : 0.0;
+        res.rel_error = relative_standard_error(diffuse_s1, diffuse_s2, done);
+        if (target_kept > 0) {
+            res.stop_reason = "target_rel_error";
+            break;
+        }
         // The deadline cut a batch, or passed while the round's batches completed (every rank
         // sees the same flags); the first two batches are traced in any case.
         if (kept < cnt || (expired > 0 && done >= 2 && done < layout)) {
@@ -493,19 +523,12 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
             progress.update(static_cast<double>(opt.photons) * done / layout, eta.seconds,
                             eta.until);
         }
-        int stop = 0;
-        if (d.rank() == 0 && done < layout)
-            stop = opt.target_rel_error > 0 && done >= 2 && m > 0 &&
-                           res.rel_error < opt.target_rel_error
-                       ? 1
-                       : 0;
-        MPI_Bcast(&stop, 1, MPI_INT, 0, d.comm());
-        if (stop) {
-            res.stop_reason = "target_rel_error";
-            break;
-        }
     }
     progress.finish();
+    if (done < kMinBatchesForTarget && d.rank() == 0)
+        log::warn("montecarlo: the standard errors come from {} batch means only ({} degrees of freedom) and "
+                  "are themselves uncertain; use more batches (model.montecarlo.batches) or a longer time_budget",
+                  done, std::max(0, done - 1));
     const double t_traced = wall_time();
     res.batches = done;
     res.layout_batches = layout;

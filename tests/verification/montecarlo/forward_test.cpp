@@ -399,6 +399,23 @@ TEST(Forward, StopsAtTargetRelativeError) {
     EXPECT_LT(r.rel_error, 0.05);
 }
 
+// The target is tested batch by batch from kMinBatchesForTarget on, so the run keeps the same
+// first K batches on any rank count (rounds of P batches used to decide per round: 2 batches
+// on 1-2 ranks, 12 on 3, fields 4% apart) and never judges from fewer than 8 batches.
+TEST(Forward, TargetRelativeErrorStopIsTheSameOnAnyRankCount) {
+    Slab world(MPI_COMM_WORLD, 2.0, 0.99, 0.85);
+    Slab self(MPI_COMM_SELF, 2.0, 0.99, 0.85);
+    MonteCarloOptions o = options(640000);
+    o.target_rel_error = 0.5;  // met by any two batches: the minimum decides
+    const ForwardResult a = trace_forward(world.d, world.m, {beam(1.0)}, o);
+    const ForwardResult b = trace_forward(self.d, self.m, {beam(1.0)}, o);
+    EXPECT_EQ(a.stop_reason, "target_rel_error");
+    EXPECT_EQ(a.batches, mc::kMinBatchesForTarget);
+    EXPECT_EQ(b.batches, a.batches);
+    EXPECT_EQ(b.photons, a.photons);
+    expect_same_fields(a, b, world.d.local());
+}
+
 // A run on the test slab of `batches` batches of `per_batch` photons under time_budget `budget`.
 ForwardResult budget_run(const Slab& slab, int batches, std::int64_t per_batch, double budget) {
     MonteCarloOptions o = options(batches * per_batch);
