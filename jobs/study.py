@@ -41,7 +41,9 @@ def run_nimbus(args, scene, sets, out_dir):
         rc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, env=env).returncode
     wall = time.monotonic() - start
     if rc != 0:
-        raise RuntimeError(f"nimbus run failed ({rc}); see {out_dir}/log.txt")
+        with open(os.path.join(out_dir, "log.txt")) as log:
+            errors = [l.strip() for l in log if "error:" in l]
+        raise RuntimeError(f"nimbus run failed ({rc}): {errors[0] if errors else ''} (log: {out_dir}/log.txt)")
     report = {}
     with h5py.File(os.path.join(out_dir, "nimbus.h5"), "r") as f:
         if "run" in f and "report" in f["run"].attrs:
@@ -75,7 +77,8 @@ def solve_seconds(report):
     for p in report.get("phases", []):
         if p["name"] == "model":
             return p["seconds"]
-    return report.get("total_seconds", float("nan"))
+    # The HDF5 file stores the report as it stood before the output was written.
+    return report.get("total_seconds", report.get("total_seconds_before_output", float("nan")))
 
 
 def plot(rows, path):
@@ -169,6 +172,8 @@ def main():
             rows.append(row)
             print(f"{tag} {label}: {wall:.2f} s, relative L2 {row['rel_l2']:.3e}, max {row['max_rel']:.3e}", flush=True)
 
+    if not rows:
+        raise SystemExit("study: no model ran on any scene (every one was skipped); nothing to write")
     with open(os.path.join(args.out, "study.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
         w.writeheader()
@@ -180,4 +185,7 @@ def main():
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except RuntimeError as e:  # a failed nimbus run or compare: its message, not a traceback
+        sys.exit(f"study: {e}")

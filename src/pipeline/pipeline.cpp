@@ -171,12 +171,18 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
 
     const fs::path stem = fs::path(scene.output.dir) / scene.output.name;
     report.values()["total_seconds_before_output"] = wall_time() - t_start;
-    nlohmann::json summary = report.summarize(d.comm());
-    summary["model"] = model->name();
-    summary["model_options"] = model->options();
-    summary["decomposition"] = d.describe();
-    summary["grid"] = {{"n", scene.grid.n}, {"h_m", scene.grid.h()}};
-    summary["libraries"] = library_versions();
+    // The run's report (collective): the HDF5 file stores it as it stands before the output is
+    // written; the returned (and logged) report is taken again at the end, with the output's time.
+    const auto summarize = [&] {
+        nlohmann::json summary = report.summarize(d.comm());
+        summary["model"] = model->name();
+        summary["model_options"] = model->options();
+        summary["decomposition"] = d.describe();
+        summary["grid"] = {{"n", scene.grid.n}, {"h_m", scene.grid.h()}};
+        summary["libraries"] = library_versions();
+        return summary;
+    };
+    const nlohmann::json summary_before_output = summarize();
     // Every output goes to a temporary name; commit() makes them all final together, so a
     // failed run leaves none under its final name (and no temporary).
     OutputFiles files(d.comm());
@@ -185,7 +191,7 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
         Hdf5Writer out(d, medium.grid, stem.string() + ".h5", files);
         write_fields(out, medium, light, diffuse, d);
         out.write_string_attribute("/scene", "toml", scene_to_toml(scene));
-        out.write_string_attribute("/run", "report", summary.dump(2));
+        out.write_string_attribute("/run", "report", summary_before_output.dump(2));
         out.close();
         result.hdf5_path = out.path();
     }
@@ -193,6 +199,7 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
         result.exr_path = stem.string() + ".exr";
         result.png_path = stem.string() + ".png";
         const std::string exr = files.add(result.exr_path), png = files.add(result.png_path);
+        ScopedTimer t(report, "output/image");
         run_collective(d.comm(), [&] {
             if (d.rank() != 0) return;
             try {
@@ -203,7 +210,11 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
             }
         });
     }
-    files.commit();
+    {
+        ScopedTimer t(report, "output/commit");
+        files.commit();
+    }
+    nlohmann::json summary = summarize();
     // Rank 0's clock, so that the report is the same on every rank.
     double total = wall_time() - t_start;
     MPI_Bcast(&total, 1, MPI_DOUBLE, 0, d.comm());
