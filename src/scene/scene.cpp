@@ -19,8 +19,8 @@ void require(bool ok, const std::string& msg) {
 
 void require_bands(const std::vector<double>& v, int nb, const char* key) {
     require(static_cast<int>(v.size()) == nb || v.size() == 1,
-            fmt::format("{} has {} values but the scene has {} band(s): give 1 or {}", key,
-                        v.size(), nb, nb));
+            nb == 1 ? fmt::format("{} has {} values but the scene has 1 band: give 1", key, v.size())
+                    : fmt::format("{} has {} values but the scene has {} bands: give 1 or {}", key, v.size(), nb, nb));
     for (double x : v)
         require(std::isfinite(x) && x >= 0.0, fmt::format("{} = {} must be finite and >= 0", key, x));
 }
@@ -72,9 +72,10 @@ void validate_band_names(const std::vector<BandOptics>& bands) {
         require(!name.empty(), key + " must not be empty: a band name names its datasets in the HDF5 output");
         require(std::none_of(name.begin(), name.end(), [](char c) { return (c >= 0 && c < 0x20) || c == 0x7f; }),
                 key + " contains a control character: band names name their datasets in the HDF5 output");
-        require(name.find('/') == std::string::npos && name != "." && name != "..",
-                fmt::format("{} = \"{}\" is not a valid band name: no '/', and not \".\" or \"..\" (it names the "
-                            "HDF5 datasets fields/<field>/<name>)",
+        require(name.find_first_of("/:") == std::string::npos && name != "." && name != "..",
+                fmt::format("{} = \"{}\" is not a valid band name: no '/' or ':', and not \".\" or \"..\" (it "
+                            "names the HDF5 datasets fields/<field>/<name>, which the XDMF file references as "
+                            "<file>.h5:/fields/<field>/<name>)",
                             key, name));
         for (size_t c = 0; c < b; ++c)
             require(bands[c].name != name,
@@ -162,8 +163,11 @@ void Scene::validate() const {
             "render.early_termination must be in [0, 1)");
     require_bands(render.emission_color, nbands(), "render.emission_color");
     require(render.exposure > 0 && std::isfinite(render.exposure), "render.exposure must be > 0");
-    require(!output.name.empty() && output.name.find('/') == std::string::npos,
-            "output.name must be a plain file name without '/'");
+    require(!output.name.empty(), "output.name must not be empty: it names the output files <name>.h5, .xdmf, .exr");
+    require(output.name.find_first_of("/:") == std::string::npos,
+            fmt::format("output.name = \"{}\" must be a plain file name without '/' or ':' (the XDMF file "
+                        "references <name>.h5:/fields/...)",
+                        output.name));
 }
 
 const char* to_string(RenderMode m) {

@@ -148,6 +148,8 @@ TEST(SceneErrors, BandNames) {
                                                          "must be unique"});
     expect_error(edit("name = \"gray\"", "name = \"\""), "name = \"\"", {"optics[0].name must not be empty"});
     expect_error(edit("name = \"gray\"", "name = \"r/g\""), "r/g", {"optics[0].name = \"r/g\" is not a valid band name", "'/'"});
+    // ':' separates file and dataset in the XDMF file's references: ParaView could not open them.
+    expect_error(edit("name = \"gray\"", "name = \"a:b\""), "a:b", {"optics[0].name = \"a:b\" is not a valid band name", "':'"});
     expect_error(edit("name = \"gray\"", "name = \".\""), "name = \".\"", {"optics[0].name = \".\" is not a valid"});
     expect_error(edit("name = \"gray\"", "name = \"..\""), "name = \"..\"", {"optics[0].name = \"..\" is not a valid"});
     expect_error(edit("name = \"gray\"", "name = \"a\\tb\""), "name = \"a", {"optics[0].name contains a control character"});
@@ -160,6 +162,16 @@ TEST(SceneErrors, BandNames) {
             << e.what();
     }
     EXPECT_NO_THROW(load_scene_string(kBase + "[[optics]]\nname = \"0.55 um (green)\"\n", "ok.toml"));
+}
+
+// output.name names <name>.h5, .xdmf, .exr, .png in output.dir, and the XDMF file references
+// <name>.h5:/fields/...: a plain, non-empty name without '/' or ':'.
+TEST(SceneErrors, OutputName) {
+    const std::string with_output = kBase + "[output]\nname = \"run\"\n";
+    EXPECT_NO_THROW(load_scene_string(with_output, "ok.toml"));
+    expect_error(edit("", "[output]\nname = \"run:1\""), "run:1", {"output.name = \"run:1\"", "':'"});
+    expect_error(edit("", "[output]\nname = \"a/b\""), "a/b", {"output.name = \"a/b\"", "'/'"});
+    expect_error(edit("", "[output]\nname = \"\""), "name = \"\"", {"output.name must not be empty"});
 }
 
 TEST(SceneErrors, NegativeDensityScale) {
@@ -181,7 +193,7 @@ TEST(SceneErrors, Sources) {
     expect_error(edit("name = \"single\"", dom + ok + "[[sources]]\nlo = [0, 0, 0]\nhi = [1, 1, 1]\npower = -1"),
                  "power = -1", {"sources[1].power = -1 must be finite and >= 0"});
     expect_error(edit("name = \"single\"", dom + "[[sources]]\nlo = [0, 0, 0]\nhi = [1, 1, 1]\npower = [1, 2]"),
-                 "power = [1, 2]", {"sources[0].power has 2 values but the scene has 1 band(s)"});
+                 "power = [1, 2]", {"sources[0].power has 2 values but the scene has 1 band: give 1"});
     expect_error(edit("name = \"single\"", dom + "[[sources]]\nlo = [0.6, 0, 0]\nhi = [1.4, 1, 1]"), "lo = [0.6",
                  {"sources[0].lo/hi cover no cell centre"});
     expect_error(edit("name = \"single\"", dom + "[[sources]]\nlo = [0, 0, 0]"), "[[sources]]",
@@ -234,7 +246,7 @@ TEST(SceneErrors, OtherRanges) {
                       "allowed: single, diffusion, dom, lpm, psf, montecarlo"});
     }
     expect_error(edit("", "[sky]\nradiance = [1, 2]"), "radiance = [1, 2]",
-                 {"sky.radiance has 2 values but the scene has 1 band(s)"});
+                 {"sky.radiance has 2 values but the scene has 1 band: give 1"});
 }
 
 TEST(SceneErrors, NoOpticsAndMissingFile) {
