@@ -73,9 +73,10 @@ public:
     // band's coefficients, the light sources: state_bytes_per_cell below) per local cell, measured
     // 1.95x and 2.01x on the default cloud at S4 L3 and S8 L7; GMRES adds its Krylov basis, up to
     // 31 vectors of all moments (restart 30).
-    // Before the light pass: diamond with DSA on cells too thick for it (check_diamond_dsa, from
-    // the medium: kappa* = (1 - a f) rho sigma_t of every band).
+    // Before the light pass: the decomposition the sweeps need, and diamond with DSA on cells too
+    // thick for it (check_diamond_dsa, from the medium: kappa* = (1 - a f) rho sigma_t of every band).
     void check(const Scene&, const Decomposition& d, const Medium& m) const override {
+        dom::check_sweep_decomposition(d);
         if (opt_.scheme != "diamond" || opt_.iteration != "dsa") return;
         const dom::AngularSet ang = dom::make_angular_set(opt_);
         double rho_max = 0.0;

@@ -112,6 +112,15 @@ void group_moments(const Box& own, const AngularSet& ang, const std::vector<Octa
 
 }  // namespace
 
+void check_sweep_decomposition(const Decomposition& d) {
+    for (int a = 0; a < 2; ++a)
+        if (d.periodic(a) && d.dims()[a] != 1)
+            throw Error(fmt::format("model dom: grid.periodic axis {} must not be split over ranks (grid.process_grid; "
+                                    "got {})", "xy"[a], d.describe()));
+    if (d.periodic(2))
+        throw Error("model dom: grid.periodic z is not supported (the sweeps pipeline along z); use periodic x/y only");
+}
+
 TransportSweeper::TransportSweeper(const Decomposition& d, const AngularSet& ang, double h,
                                    const sweep::SweepOptions& opt, double periodic_tolerance,
                                    SpatialScheme scheme, const SweepBoundary& boundary, bool fixup)
@@ -145,10 +154,7 @@ TransportSweeper::TransportSweeper(const Decomposition& d, const AngularSet& ang
             }
         }
     }
-    for (int a = 0; a < 2; ++a)
-        if (d.periodic(a) && d.dims()[a] != 1)
-            throw Error(fmt::format("dom: periodic axis {} must not be split over ranks ({})", "xy"[a], d.describe()));
-    if (d.periodic(2)) throw Error("dom: periodic z is not supported");
+    check_sweep_decomposition(d);
     if (d.periodic(0) || d.periodic(1)) opt_.tile_rows = d.local().size(1);  // whole layers
     for (int o = 0; o < 8; ++o) {
         const auto& oc = ang.octants[static_cast<size_t>(o)];

@@ -100,6 +100,10 @@ struct SweepTiming {
     std::int64_t fixups = 0;      // diamond: cell-directions that needed the negative-flux fix-up
 };
 
+// What the sweeper needs of the decomposition: periodic x/y unsplit, z not periodic. Throws
+// Error on every rank alike; run by the model's pre-flight check and by the constructor.
+void check_sweep_decomposition(const Decomposition& d);
+
 class TransportSweeper {
 public:
     // Throws Error (same on every rank) when a reflective face is on a periodic axis or the

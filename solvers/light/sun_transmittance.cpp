@@ -121,14 +121,19 @@ LightTransport exact_light_transport(const Decomposition& d, const Medium& m,
 
 }  // namespace
 
+void check_light_method(const Decomposition& d, LightSpec::Method method) {
+    if (method == LightSpec::Method::sweep && !d.is_slab_z())
+        throw Error(fmt::format("light.method = \"sweep\" sweeps along z and needs slabs along z "
+                                "(grid.process_grid = [1, 1, P]); got {}; use light.method = \"exact\"",
+                                d.describe()));
+}
+
 LightTransport compute_light_transport(const Decomposition& d, const Medium& m,
                                        const std::vector<DirectionalLight>& lights, Report& report,
                                        const sweep::SweepOptions& opt, LightSpec::Method method) {
     ScopedTimer timer(report, "light");
+    check_light_method(d, method);
     if (method == LightSpec::Method::exact) return exact_light_transport(d, m, lights, report);
-    if (!d.is_slab_z())
-        throw Error(fmt::format("the light pass sweeps along z and needs slabs along z "
-                                "(grid.process_grid = [1, 1, P]); got {}", d.describe()));
     LightTransport lt;
     lt.lights = lights;
     const Int3 n = d.global().hi;

@@ -31,6 +31,10 @@ namespace nimbus {
 // layer exchanged. Times "light" (and "light/sweep") into report.
 // method exact: long characteristics instead (see LightSpec; exact_chain.h); any decomposition;
 // slabs along z pipeline the rays down the chain, other process grids replicate the density.
+// What compute_light_transport needs of the decomposition for `method` (sweep: slabs along z);
+// throws Error on every rank alike. Run also before the costly phases (pipeline, nimbus info).
+void check_light_method(const Decomposition& d, LightSpec::Method method);
+
 LightTransport compute_light_transport(const Decomposition& d, const Medium& m,
                                        const std::vector<DirectionalLight>& lights, Report& report,
                                        const sweep::SweepOptions& opt = {},

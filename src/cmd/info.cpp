@@ -14,6 +14,7 @@
 #include <utility>
 
 #include "io/scene/density_import.h"
+#include "solvers/light/sun_transmittance.h"
 #include "solvers/registry.h"
 #include "src/cmd/commands.h"
 #include "src/cmd/memory.h"
@@ -140,6 +141,7 @@ void info(const RunOptions& opts) {
     m.grid = make_grid(s.grid);
     m.bands = s.bands;
     m.rho = std::move(rho);
+    check_light_method(d, s.light.method);
     check_volume_sources(volume_sources(s), m.rho, d);
     make_model(s.model)->check(s, d, m);
 }

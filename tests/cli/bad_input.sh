@@ -94,6 +94,13 @@ if [ "$np" -gt 1 ] && "$nimbus" info --set "grid.n=[8,8,8]" 2>&1 | grep -q "mode
   SUB=info expect_error "model psf needs at least 3 z layers per rank" --set "grid.n=[8,8,5]" --set 'model.name="psf"'
   expect_error "model psf needs at least 3 z layers per rank" --set "grid.n=[8,8,5]" --set 'model.name="psf"' --set output.image=false
 fi
+# Decompositions the light pass or a model cannot use: info refuses them as run does, before
+# the light pass.
+if [ "$np" -gt 1 ]; then
+  SUB=info expect_error 'light.method = "sweep" sweeps along z and needs slabs' "${small[@]}" --set 'light.method="sweep"' --set "grid.process_grid=[$np,1,1]"
+  expect_error 'light.method = "sweep" sweeps along z and needs slabs' "${small[@]}" --set 'light.method="sweep"' --set "grid.process_grid=[$np,1,1]"
+fi
+SUB=info expect_error "model dom: grid.periodic z is not supported" "${small[@]}" --set 'model.name="dom"' --set "grid.periodic=[false,false,true]"
 if [ "$np" -gt 1 ] && "$nimbus" info --set "grid.n=[8,8,8]" 2>&1 | grep -q "models in this build:.*lpm"; then
   expect_error "model lpm needs slabs along z" "${small[@]}" --set 'model.name="lpm"' --set "grid.process_grid=[2,1,1]"
 fi
