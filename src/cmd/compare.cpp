@@ -139,6 +139,11 @@ void add_compare_command(CLI::App& app) {
     cmd->add_option("B", args->b, "the reference run's HDF5 file, e.g. a Monte Carlo run's")
         ->required()
         ->check(CLI::ExistingFile);
+    cmd->footer(
+        "Per band, over the cells with density: rel L2 = ||a - b||_2 / ||b||_2; max rel = max|a - b| / "
+        "max|b| (relative to the reference's maximum, not per cell); RMS z = sqrt(mean(((a - b) / s_b)^2)) "
+        "where B has a standard error s_b (Monte Carlo): about 1 when A agrees with B within B's noise. "
+        "Images: RMSE over pixels and RGB, relative error ||a - b|| / ||b||.");
     cmd->add_flag("--json", args->json, "print JSON instead of a table");
     cmd->add_option("--field", args->field, "per-band field to compare: fluence_diffuse | fluence_reduced | "
                                              "transmittance_sun")
