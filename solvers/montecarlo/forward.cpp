@@ -206,6 +206,11 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                                                       : fmt::format("sources[{}]", t - lights.size()),
                                     power[t]));
     const std::vector<std::int64_t> n_light = photons_per_light(power, opt.photons, B);
+    const std::int64_t n_total = std::accumulate(n_light.begin(), n_light.end(), std::int64_t{0});
+    if (n_total > opt.photons)
+        log::warn("montecarlo: {} photons asked for, {} traced: every lit term takes at least one photon per "
+                  "batch ({} terms, {} batches)",
+                  opt.photons, n_total, std::count_if(power.begin(), power.end(), [](double p) { return p > 0; }), B);
     const size_t nl = lights.size(), nt = nl + emitters.size();  // light terms, all terms
 
     // Per-rank accumulators over the global grid: [cell][band] sum and sum of squares of the

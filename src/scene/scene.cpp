@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 #include "src/core/error.h"
@@ -116,6 +117,11 @@ bool camera_sees_domain(const CameraSpec& c, const GridSpec& g) {
 void Scene::validate() const {
     for (int d = 0; d < 3; ++d)
         require(grid.n[d] > 0, fmt::format("grid.n{} = {} must be >= 1 (zero-size grid)", "xyz"[d], grid.n[d]));
+    // Cell counts are 64-bit, their byte counts too: 2^40 cells (8 TiB per double field) is far
+    // beyond any run and keeps every product of counts exact.
+    const double cells = static_cast<double>(grid.n[0]) * grid.n[1] * grid.n[2];
+    require(cells <= 0x1p40, fmt::format("grid.n = [{}, {}, {}] has {:.3g} cells; at most 2^40 = {:.3g} are supported",
+                                         grid.n[0], grid.n[1], grid.n[2], cells, 0x1p40));
     require(std::isfinite(grid.h()) && grid.h() > 0,
             fmt::format("grid.cell_size = {} must be > 0", grid.cell_size));
     require(!bands.empty(), "optics: at least one band is required");
@@ -130,6 +136,10 @@ void Scene::validate() const {
     }
     require(std::isfinite(medium.density) && medium.density >= 0,
             fmt::format("medium.density = {} must be finite and >= 0", medium.density));
+    // The output stores fields in single precision.
+    require(medium.density <= std::numeric_limits<float>::max(),
+            fmt::format("medium.density = {} is beyond single precision ({:.3g}), in which the output stores it",
+                        medium.density, std::numeric_limits<float>::max()));
     if (sun.enabled) {
         require(norm(sun.direction) > 0 && std::isfinite(norm(sun.direction)),
                 "sun.direction must be a non-zero finite vector");

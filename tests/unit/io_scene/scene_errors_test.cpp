@@ -247,6 +247,12 @@ TEST(SceneErrors, OtherRanges) {
     }
     expect_error(edit("", "[sky]\nradiance = [1, 2]"), "radiance = [1, 2]",
                  {"sky.radiance has 2 values but the scene has 1 band: give 1"});
+    // Sizes whose products overflow (the memory estimate went negative) and a density beyond the
+    // single precision of the output (written as inf).
+    expect_error(edit("n = [8, 8, 8]", "n = [2097152, 2097152, 2097152]"), "n = [2097152",
+                 {"has 9.22e+18 cells; at most 2^40"});
+    expect_error(edit("density = 1.0", "density = 1e308"), "density = 1e308",
+                 {"medium.density = 1e+308 is beyond single precision"});
 }
 
 TEST(SceneErrors, NoOpticsAndMissingFile) {
