@@ -197,6 +197,8 @@ void read_medium(const TableReader& t, MediumSpec& m, const fs::path& base_dir) 
             t.fail("kind", fmt::format("= \"{}\" needs medium.file (path, relative to the scene file)",
                                        to_string(m.kind)));
         m.file = resolve_file(m.file, t.at("file"), base_dir).string();
+        if (fs::is_directory(m.file))
+            t.fail("file", fmt::format("= \"{}\" is a directory, not a density file", m.file));
         if (!fs::is_regular_file(m.file))
             t.fail("file", fmt::format("= \"{}\": file not found", m.file));
     } else if (t.has("file")) {

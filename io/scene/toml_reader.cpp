@@ -207,9 +207,9 @@ void TableReader::read(const std::string& key, std::array<int, 3>& out) const {
     if (!v.is_array() || v.as_array().size() != 3) bad();
     for (int d = 0; d < 3; ++d) {
         const toml::value& e = v.as_array()[static_cast<size_t>(d)];
-        if (!e.is_integer() || e.as_integer() < std::numeric_limits<int>::min() ||
-            e.as_integer() > std::numeric_limits<int>::max())
-            bad();
+        if (!e.is_integer()) bad();
+        if (e.as_integer() < std::numeric_limits<int>::min() || e.as_integer() > std::numeric_limits<int>::max())
+            fail(key, fmt::format("entry {} = {} is outside the range of a 32-bit integer", d, e.as_integer()));
         out[static_cast<size_t>(d)] = static_cast<int>(e.as_integer());
     }
 }

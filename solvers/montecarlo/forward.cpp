@@ -93,8 +93,8 @@ StopEta eta_to_stop(const MonteCarloOptions& opt, int done, double trace_seconds
 void check_replicated_memory(const std::array<int, 3>& n, double bytes, const MonteCarloOptions& opt) {
     if (bytes / 1e9 > opt.max_replicated_memory_gb)
         throw Error(fmt::format(
-            "Monte Carlo replicates the {}x{}x{} grid on every rank: {:.2f} GB per rank exceeds "
-            "model.montecarlo.max_replicated_memory_gb = {:.2f}; raise that limit, run fewer ranks "
+            "Monte Carlo replicates the {}x{}x{} grid on every rank: {:.3g} GB per rank exceeds "
+            "model.montecarlo.max_replicated_memory_gb = {:.3g}; raise that limit, run fewer ranks "
             "per node, or use a coarser grid",
             n[0], n[1], n[2], bytes / 1e9, opt.max_replicated_memory_gb));
 }

@@ -26,14 +26,18 @@ std::string usage_message(const CLI::App& app, const CLI::ParseError& e) {
                                                             : "nimbus " + subs.front()->get_name() + " --help";
     if (subs.empty() && e.get_name() == "RequiredError") {
         // No subcommand matched: name what was typed instead of "A subcommand is required".
-        std::string typed;
-        for (const std::string& a : app.remaining())
-            if (a.empty() || a[0] != '-') {
-                typed = a;
-                break;
+        std::string typed, option;
+        for (const std::string& a : app.remaining()) {
+            if (!a.empty() && a[0] == '-') {
+                if (option.empty()) option = a;
+                continue;
             }
-        what = typed.empty() ? "a command is required: run, info or compare"
-                             : "unknown command '" + typed + "'; commands: run, info, compare";
+            typed = a;
+            break;
+        }
+        what = !typed.empty()  ? "unknown command '" + typed + "'; commands: run, info, compare"
+               : !option.empty() ? "unknown option '" + option + "' and no command; commands: run, info, compare"
+                                 : "a command is required: run, info or compare";
     }
     for (char& c : what)
         if (c == '\n') c = ' ';

@@ -37,7 +37,8 @@ void add_run_command(CLI::App& app) {
     run->add_option("--set", opts->overrides, "override a scene key, e.g. --set grid.n=[32,32,32] "
                                               "--set model.name=montecarlo (repeatable)")
         ->allow_extra_args(false);
-    run->add_option("--out", opts->out_dir, "output folder (default: the scene's output.dir)");
+    run->add_option("--out", opts->out_dir, "output folder (default: the scene's output.dir)")
+        ->check([](const std::string& dir) { return dir.empty() ? std::string("the folder name is empty") : std::string(); });
     run->callback([opts] {
         MPI_Comm comm = MPI_COMM_WORLD;
         const Scene scene = load_run_scene(comm, *opts);

@@ -117,11 +117,11 @@ bool camera_sees_domain(const CameraSpec& c, const GridSpec& g) {
 void Scene::validate() const {
     for (int d = 0; d < 3; ++d)
         require(grid.n[d] > 0, fmt::format("grid.n{} = {} must be >= 1 (zero-size grid)", "xyz"[d], grid.n[d]));
-    // Cell counts are 64-bit, their byte counts too: 2^40 cells (8 TiB per double field) is far
-    // beyond any run and keeps every product of counts exact.
+    // Cell counts are 64-bit, their byte counts too: 2^50 cells is far beyond any machine (the
+    // memory check refuses it with advice) and keeps cells x bytes per cell below 2^63.
     const double cells = static_cast<double>(grid.n[0]) * grid.n[1] * grid.n[2];
-    require(cells <= 0x1p40, fmt::format("grid.n = [{}, {}, {}] has {:.3g} cells; at most 2^40 = {:.3g} are supported",
-                                         grid.n[0], grid.n[1], grid.n[2], cells, 0x1p40));
+    require(cells <= 0x1p50, fmt::format("grid.n = [{}, {}, {}] has {:.3g} cells; at most 2^50 = {:.3g} are supported",
+                                         grid.n[0], grid.n[1], grid.n[2], cells, 0x1p50));
     require(std::isfinite(grid.h()) && grid.h() > 0,
             fmt::format("grid.cell_size = {} must be > 0", grid.cell_size));
     require(!bands.empty(), "optics: at least one band is required");

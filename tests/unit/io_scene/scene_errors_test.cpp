@@ -250,7 +250,7 @@ TEST(SceneErrors, OtherRanges) {
     // Sizes whose products overflow (the memory estimate went negative) and a density beyond the
     // single precision of the output (written as inf).
     expect_error(edit("n = [8, 8, 8]", "n = [2097152, 2097152, 2097152]"), "n = [2097152",
-                 {"has 9.22e+18 cells; at most 2^40"});
+                 {"has 9.22e+18 cells; at most 2^50"});
     expect_error(edit("density = 1.0", "density = 1e308"), "density = 1e308",
                  {"medium.density = 1e+308 is beyond single precision"});
 }
