@@ -7,7 +7,6 @@
 
 #include "solvers/lpm/angular.h"
 #include "solvers/lpm/solve_band.h"
-#include "solvers/lpm/tail.h"
 #include "src/core/error.h"
 #include "src/core/log.h"
 #include "src/core/progress.h"
@@ -32,7 +31,7 @@ public:
     double memory_bytes(const Scene&, const Decomposition& d, int) const override {
         return (186.0 + 8.0 * 6 * opt_.k * opt_.k) * static_cast<double>(d.local().cells());
     }
-    // Before the light pass: what the map sweeps need of the decomposition, and the tail's solver.
+    // Before the light pass: what the map sweeps need of the decomposition (and odd p's warning).
     void check(const Scene&, const Decomposition& d, const Medium&) const override {
         check_decomposition(d);
         if (opt_.p % 2 == 1 && (d.periodic(0) || d.periodic(1)) && d.rank() == 0)
@@ -40,9 +39,6 @@ public:
                       "layers and deposit all their light there (several times too much fluence on thin or "
                       "localized media); use an even p",
                       opt_.p);
-        if (opt_.tail == "diffusion" && !lpm::diffusion_tail_available())
-            throw Error("model.lpm.tail = \"diffusion\" needs the diffusion model in the build (NIMBUS_MODELS "
-                        "with diffusion listed before lpm); use tail = \"geometric\" or \"none\"");
     }
     void solve(const SolveContext& ctx, DiffuseSolution& out) override {
         const Decomposition& d = ctx.decomp;

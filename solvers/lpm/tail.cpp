@@ -6,9 +6,7 @@
 #include "src/core/error.h"
 #include "src/core/halo.h"
 
-#ifdef NIMBUS_LPM_HAVE_DIFFUSION
 #include "solvers/diffusion/solve_diffusion.h"
-#endif
 
 namespace nimbus::lpm {
 
@@ -24,17 +22,8 @@ void add_geometric_tail(Field<double>& fluence, const Field<double>& previous, d
     });
 }
 
-bool diffusion_tail_available() {
-#ifdef NIMBUS_LPM_HAVE_DIFFUSION
-    return true;
-#else
-    return false;
-#endif
-}
-
 DiffusionTail diffusion_tail(const Decomposition& d, const Medium& m, int band, const Field<double>& U,
                              const Field<double>& kappa, const Angular& ang, Report& report) {
-#ifdef NIMBUS_LPM_HAVE_DIFFUSION
     const BandOptics& bo = m.bands[static_cast<size_t>(band)];
     const int nm = ang.coarse_bins();
     // Coarse-bin mean directions (1/|Ω^m|) ∫_{Ω^m} ω dω from the nested map bins.
@@ -82,13 +71,6 @@ DiffusionTail diffusion_tail(const Decomposition& d, const Medium& m, int band, 
     t.solver_iterations = res.stats.empty() ? 0 : res.stats[0].iterations;
     t.true_residual = res.stats.empty() ? 0.0 : res.stats[0].true_residual;
     return t;
-#else
-    (void)m, (void)band, (void)U, (void)kappa, (void)ang, (void)report;
-    check_collective(d.comm(), false,
-                     "model.lpm.tail = \"diffusion\" needs the diffusion model in the build "
-                     "(NIMBUS_MODELS with diffusion listed before lpm)");
-    return {};
-#endif
 }
 
 }  // namespace nimbus::lpm

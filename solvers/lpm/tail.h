@@ -30,9 +30,6 @@ double geometric_tail_factor(double remaining, double previous_remaining);
 // Adds factor x (fluence - previous) to fluence on the owned cells (same boxes).
 void add_geometric_tail(Field<double>& fluence, const Field<double>& previous, double factor);
 
-// Whether this build has the diffusion model that tail = "diffusion" solves with.
-bool diffusion_tail_available();
-
 struct DiffusionTail {
     Field<double> fluence;  // W/m², owned + 1 ghost (halo-exchanged)
     Field<double> flux;     // W/m², 3 components, owned + 1 ghost
