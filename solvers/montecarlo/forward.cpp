@@ -18,6 +18,7 @@
 #include "src/core/gather.h"
 #include "src/core/halo.h"
 #include "src/core/log.h"
+#include "src/core/mpi_counts.h"
 #include "src/core/progress.h"
 #include "src/core/report.h"
 #include "src/scene/optics_groups.h"
@@ -564,7 +565,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     // Reduce the per-cell sums to the owners of each box: pack by destination rank, only the
     // cells with density (the others are never tallied; every rank knows the replicated rho).
     auto has_density = [&](int i, int j, int k) { return rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] > 0; };
-    std::vector<int> recv_counts(static_cast<size_t>(P), 0);
+    std::vector<std::int64_t> recv_counts(static_cast<size_t>(P), 0);
     for (int r = 0; r < P; ++r)
         for_each_cell(d.box_of(r), [&](int i, int j, int k) {
             if (has_density(i, j, k)) recv_counts[static_cast<size_t>(r)] += nb * nq;
@@ -584,8 +585,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                 }
             }
         });
-    std::vector<double> recv(static_cast<size_t>(recv_counts[static_cast<size_t>(d.rank())]));
-    MPI_Reduce_scatter(send.data(), recv.data(), recv_counts.data(), MPI_DOUBLE, MPI_SUM, d.comm());
+    const std::vector<double> recv = reduce_scatter_sum(d.comm(), send, recv_counts);  // > 2^31: mpi_counts.h
 
     auto mean_and_stderr = [&](double s, double s2, double& mean, double& se) {
         mean = s / K;

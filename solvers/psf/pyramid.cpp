@@ -5,6 +5,7 @@
 
 #include "src/core/error.h"
 #include "src/core/halo.h"
+#include "src/core/mpi_counts.h"
 
 namespace nimbus::psf {
 namespace {
@@ -81,14 +82,15 @@ Field<double> allgather_slabs(const Field<double>& f, const Int3& n,
     const int nc = f.ncomp();
     const long long layer = static_cast<long long>(n[0]) * n[1] * nc;
     const std::vector<double> mine = f.owned_values();
-    std::vector<int> counts, displs;
+    std::vector<std::int64_t> counts, displs;
     for (const auto& [lo, hi] : z_owned) {
-        displs.push_back(static_cast<int>(lo * layer));
-        counts.push_back(static_cast<int>((hi - lo) * layer));
+        displs.push_back(lo * layer);
+        counts.push_back((hi - lo) * layer);
     }
     Field<double> all(Box{{0, 0, 0}, n}, 0, nc, 0.0);
-    MPI_Allgatherv(mine.data(), static_cast<int>(mine.size()), MPI_DOUBLE, all.data(), counts.data(),
-                   displs.data(), MPI_DOUBLE, comm);
+    const BlockCounts bc(comm, counts, displs, MPI_DOUBLE, {static_cast<std::int64_t>(mine.size())});
+    MPI_Allgatherv(mine.data(), bc.blocks(static_cast<std::int64_t>(mine.size())), bc.type(), all.data(),
+                   bc.counts(), bc.displs(), bc.type(), comm);
     return all;
 }
 
@@ -176,20 +178,20 @@ Field<float> gather_layers(const PyramidLevel& level, int need_lo, int need_hi, 
     std::vector<int> need(static_cast<size_t>(2 * P));
     MPI_Allgather(mine, 2, MPI_INT, need.data(), 2, MPI_INT, comm);
     const int nc = level.values.ncomp();
-    const int layer = n[0] * n[1] * nc;
-    std::vector<int> scount(static_cast<size_t>(P)), sdispl(static_cast<size_t>(P)), rcount(static_cast<size_t>(P)),
-        rdispl(static_cast<size_t>(P));
+    const std::int64_t layer = static_cast<std::int64_t>(n[0]) * n[1] * nc;
+    std::vector<std::int64_t> scount(static_cast<size_t>(P)), sdispl(static_cast<size_t>(P)),
+        rcount(static_cast<size_t>(P)), rdispl(static_cast<size_t>(P));
     std::vector<float> send;
     const auto [olo, ohi] = level.z_owned[static_cast<size_t>(rank)];
     for (int p = 0; p < P; ++p) {
         const int lo = std::max(olo, need[static_cast<size_t>(2 * p)]), hi = std::min(ohi, need[static_cast<size_t>(2 * p + 1)]);
-        sdispl[static_cast<size_t>(p)] = static_cast<int>(send.size());
+        sdispl[static_cast<size_t>(p)] = static_cast<std::int64_t>(send.size());
         for (int z = lo; z < hi; ++z)
             for (int y = 0; y < n[1]; ++y) {
                 const float* v = &level.values(0, y, z);  // one x-row of owned cells is contiguous
                 send.insert(send.end(), v, v + static_cast<std::ptrdiff_t>(n[0]) * nc);
             }
-        scount[static_cast<size_t>(p)] = static_cast<int>(send.size()) - sdispl[static_cast<size_t>(p)];
+        scount[static_cast<size_t>(p)] = static_cast<std::int64_t>(send.size()) - sdispl[static_cast<size_t>(p)];
     }
     Field<float> out(Box{{0, 0, need_lo}, {n[0], n[1], need_hi}}, 0, nc, 0.0f);
     for (int p = 0; p < P; ++p) {
@@ -198,8 +200,9 @@ Field<float> gather_layers(const PyramidLevel& level, int need_lo, int need_hi, 
         rdispl[static_cast<size_t>(p)] = std::max(0, lo - need_lo) * layer;
         rcount[static_cast<size_t>(p)] = std::max(0, hi - lo) * layer;
     }
-    MPI_Alltoallv(send.data(), scount.data(), sdispl.data(), MPI_FLOAT, out.data(), rcount.data(),
-                  rdispl.data(), MPI_FLOAT, comm);
+    const BlockCounts sb(comm, scount, sdispl, MPI_FLOAT), rb(comm, rcount, rdispl, MPI_FLOAT);
+    MPI_Alltoallv(send.data(), sb.counts(), sb.displs(), sb.type(), out.data(), rb.counts(), rb.displs(), rb.type(),
+                  comm);
     return out;
 }
 

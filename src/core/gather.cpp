@@ -2,6 +2,8 @@
 
 #include <mpi.h>
 
+#include "src/core/mpi_counts.h"
+
 namespace nimbus {
 
 std::vector<double> allgather_global(const Field<double>& f, const Decomposition& d) {
@@ -9,15 +11,18 @@ std::vector<double> allgather_global(const Field<double>& f, const Decomposition
     mine.reserve(static_cast<size_t>(d.local().cells()));
     for_each_cell(d.local(), [&](int i, int j, int k) { mine.push_back(f(i, j, k)); });
     const int size = d.size();
-    std::vector<int> counts(static_cast<size_t>(size)), displs(static_cast<size_t>(size));
-    for (int r = 0, off = 0; r < size; ++r) {
-        counts[static_cast<size_t>(r)] = static_cast<int>(d.box_of(r).cells());
+    std::vector<std::int64_t> counts(static_cast<size_t>(size)), displs(static_cast<size_t>(size));
+    std::int64_t off = 0;
+    for (int r = 0; r < size; ++r) {
+        counts[static_cast<size_t>(r)] = d.box_of(r).cells();
         displs[static_cast<size_t>(r)] = off;
         off += counts[static_cast<size_t>(r)];
     }
     std::vector<double> packed(static_cast<size_t>(d.global().cells()));
-    MPI_Allgatherv(mine.data(), static_cast<int>(mine.size()), MPI_DOUBLE, packed.data(), counts.data(),
-                   displs.data(), MPI_DOUBLE, d.comm());
+    // In blocks when a count passes 2^31 (mpi_counts.h): slabs give whole layers.
+    const BlockCounts bc(d.comm(), counts, displs, MPI_DOUBLE, {static_cast<std::int64_t>(mine.size())});
+    MPI_Allgatherv(mine.data(), bc.blocks(static_cast<std::int64_t>(mine.size())), bc.type(), packed.data(),
+                   bc.counts(), bc.displs(), bc.type(), d.comm());
     // Unpack each rank's box (x fastest within it) into the global C-order array.
     const Int3 n = d.global().hi;
     std::vector<double> global(packed.size());
