@@ -68,11 +68,18 @@ public:
             double s0 = 0.0, s1 = 0.0;
             for (int j = 0; j < nt; ++j) {
                 const double t = (j + 0.5) * dt;
-                const double p = hg_phase(g_, std::cos(t / sig)) * std::sin(t);
-                s0 += p;
-                s1 += p * std::exp(-alpha_c_ * t * t / l);
+                s0 += hg_phase(g_, std::cos(t / sig)) * std::sin(t);
             }
-            norm_[static_cast<size_t>(i)] = 1.0 / (2.0 * pi * s0 * dt);
+            s0 *= dt;
+            // The curvature factor is a Gaussian of width sqrt(l / α_c), narrower than dt at small
+            // l: its integral runs over [0, 12 widths] (beyond, exp < 1e-62) with nt nodes.
+            const double t_end = std::min(pi, 12.0 * std::sqrt(l / alpha_c_)), dt1 = t_end / nt;
+            for (int j = 0; j < nt; ++j) {
+                const double t = (j + 0.5) * dt1;
+                s1 += hg_phase(g_, std::cos(t / sig)) * std::sin(t) * std::exp(-alpha_c_ * t * t / l);
+            }
+            s1 *= dt1;
+            norm_[static_cast<size_t>(i)] = 1.0 / (2.0 * pi * s0);
             curved_[static_cast<size_t>(i)] = s1 / s0;
             for (int j = 0; j < kAngles; ++j) {
                 const double v = static_cast<double>(j) / (kAngles - 1), t = 2.0 * std::asin(v);
@@ -108,12 +115,19 @@ public:
         const double fy = y - static_cast<double>(j);
         const double* a = &table_[i * kAngles + j];
         const double* b = a + kAngles;
-        return (1.0 - fx) * ((1.0 - fy) * a[0] + fy * a[1]) + fx * ((1.0 - fy) * b[0] + fy * b[1]);
+        return below_table(l) * ((1.0 - fx) * ((1.0 - fy) * a[0] + fy * a[1]) + fx * ((1.0 - fy) * b[0] + fy * b[1]));
     }
-    // G(l) = ∫ weight(l, θ) dω.
-    double curved_integral(double l) const { return interp(curved_, l); }
+    // G(l) = ∫ weight(l, θ) dω: 0 at l = 0, and ∝ l below the table (G ~ l (1+g)/(1-g) there), so
+    // that a band without scattering (albedo 0: l = 0) and a nearly clear one get (nearly) nothing.
+    double curved_integral(double l) const { return l > 0.0 ? below_table(l) * interp(curved_, l) : 0.0; }
 
 private:
+    // l / l_min below the tabulated range (the table's first row stands in for its shape), else 1.
+    static double below_table(double l) {
+        static_assert(kLogMin == -6.0, "l_min below is 10^kLogMin");
+        constexpr double l_min = 1e-6;
+        return l < l_min ? l / l_min : 1.0;
+    }
     static double interp(const std::vector<double>& t, double l) {
         const double x = (std::log10(std::max(l, 1e-300)) - kLogMin) * kPerDecade;
         const double xc = std::clamp(x, 0.0, static_cast<double>(t.size() - 1));

@@ -39,6 +39,22 @@ TEST(PsfKernels, Eq18IsTwoThirdsOfEq1InHomogeneousMedium) {
     EXPECT_NEAR(beam_width_sq_eq1(a, b, 0.24, S) / (0.75 * 0.24 * b * S * l2), 1.0, 1e-3);
 }
 
+// G(l) = ∫ exp(-α_c θ²/l) P_MS dω at small l: l (1+g)/(1-g) (a Gaussian of width sqrt(l/α_c)
+// times P(0) = (1+g)/(4π(1-g)²), α_c = 1/(4(1-g))), on the table and below it, and exactly 0 at
+// l = 0 (a band without scattering: the table's first row used to give it G(1e-6) > 0; and the
+// table's quadrature did not resolve the Gaussian there: +11% at g = 0.85, l = 1e-6).
+TEST(PsfKernels, CurvedIntegralVanishesWithL) {
+    for (double g : {0.0, 0.3, 0.85}) {
+        const MsPhase p(g);
+        EXPECT_EQ(p.curved_integral(0.0), 0.0);
+        EXPECT_EQ(p.weight_fast(0.0, 1.0), 0.0);
+        for (double l : {1e-5, 1e-7, 1e-9}) {
+            const double limit = l * (1 + g) / (1 - g);
+            EXPECT_NEAR(p.curved_integral(l) / limit, 1.0, 2e-3) << "g " << g << " l " << l;
+        }
+    }
+}
+
 TEST(PsfKernels, MultipleScatteringPhaseIsNormalized) {
     for (double g : {0.3, 0.85, 0.9}) {
         const MsPhase p(g);
