@@ -40,6 +40,9 @@ void check_decomposition(const Decomposition& d) {
         throw Error(fmt::format("model psf needs slabs along z (grid.process_grid = [1, 1, P]): its light "
                                 "pyramid and path-length pass work on z slabs; got {}",
                                 d.describe()));
+    if (d.periodic(2))
+        throw Error("model psf: grid.periodic z is not supported (its light pyramid is split into z slabs); use "
+                    "periodic x/y only");
     if (d.dims()[2] > 1 && d.thinnest(2) < kLevel0Ghost)
         throw Error(fmt::format("model psf needs at least {} z layers per rank (its light volume has {} ghost "
                                 "layers): {} layers on {} ranks leave {}; use at most {} rank{}",
@@ -101,6 +104,7 @@ PsfSource::PsfSource(const SolveContext& ctx, const PsfOptions& opt)
     depth_.n = m.grid.n;
     depth_.h = m.grid.h;
     depth_.replicated = d.size() == 1;
+    depth_.periodic = {d.periodic(0), d.periodic(1), false};
     for (int p = 0; p < d.size(); ++p) depth_.z_owned.emplace_back(d.box_of(p).lo[2], d.box_of(p).hi[2]);
     depth_.values = Field<float>(d.local(), 1, 2 * nl, 0.0f);
     for_each_cell(d.local().grown(1), [&](int i, int j, int k) {

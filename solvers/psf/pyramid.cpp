@@ -22,8 +22,10 @@ std::vector<double> gaussian_kernel(double sigma, int radius) {
 }
 
 // One separable pass along `axis` over f's owned cells; in-domain neighbours are read from f
-// (owned or ghost), out-of-domain ones by half-sample reflection.
-void blur_axis(Field<double>& f, const Int3& n, int axis, const std::vector<double>& kern, int radius) {
+// (owned or ghost), out-of-domain ones across the seam of a periodic axis (x, y: whole on every
+// rank) or by half-sample reflection.
+void blur_axis(Field<double>& f, const Int3& n, int axis, const std::vector<double>& kern, int radius,
+               bool periodic) {
     const Box own = f.owned();
     const int nc = f.ncomp();
     Field<double> out(own, 0, nc, 0.0);
@@ -33,7 +35,7 @@ void blur_axis(Field<double>& f, const Int3& n, int axis, const std::vector<doub
         int idx[3] = {i, j, k};
         const int centre = idx[axis];
         for (int o = -radius; o <= radius; ++o) {
-            idx[axis] = reflect_index(centre + o, n[axis]);
+            idx[axis] = periodic ? wrap_index(centre + o, n[axis]) : reflect_index(centre + o, n[axis]);
             const double w = kern[static_cast<size_t>(o + radius)];
             const double* p = &f(idx[0], idx[1], idx[2]);
             for (int c = 0; c < nc; ++c) acc[static_cast<size_t>(c)] += w * p[c];
@@ -105,8 +107,13 @@ LightPyramid::LightPyramid(Field<double> level0, const Grid& g, const Decomposit
                      "model psf: the level-0 light volume must cover the rank's box with 3 ghost layers");
     exchange_halo(level0, d);
 
+    // z is split over the ranks (slabs), so only x and y can be blurred across a periodic seam.
+    check_collective(comm, !d.periodic(2), "model psf: grid.periodic z is not supported (its light pyramid "
+                                           "is split into z slabs)");
+    const std::array<bool, 3> periodic{d.periodic(0), d.periodic(1), false};
     PyramidLevel l0;
     l0.k = 0;
+    l0.periodic = periodic;
     l0.n = g.n;
     l0.h = g.h;
     l0.replicated = P == 1;
@@ -122,6 +129,7 @@ LightPyramid::LightPyramid(Field<double> level0, const Grid& g, const Decomposit
         if (max_levels > 0 && k >= max_levels) break;
         PyramidLevel lv;
         lv.k = k;
+        lv.periodic = periodic;
         for (int a = 0; a < 3; ++a) lv.n[a] = (pl.n[a] + 1) / 2;
         lv.h = 2.0 * pl.h;
         const double var = lv.h * lv.h - pl.width * pl.width - lv.h * lv.h / 16.0;  // (sigma h)²
@@ -145,10 +153,10 @@ LightPyramid::LightPyramid(Field<double> level0, const Grid& g, const Decomposit
                 msg = e.what();
             }
             check_collective(comm, msg.empty(), msg);
-            blur_axis(cur, lv.n, 0, kern, lv.radius);
-            blur_axis(cur, lv.n, 1, kern, lv.radius);
+            blur_axis(cur, lv.n, 0, kern, lv.radius, periodic[0]);
+            blur_axis(cur, lv.n, 1, kern, lv.radius, periodic[1]);
             exchange_halo(cur, dk);
-            blur_axis(cur, lv.n, 2, kern, lv.radius);
+            blur_axis(cur, lv.n, 2, kern, lv.radius, false);
             exchange_halo(cur, dk);
         } else {
             if (!prev_replicated) {
@@ -158,7 +166,7 @@ LightPyramid::LightPyramid(Field<double> level0, const Grid& g, const Decomposit
             lv.replicated = true;
             cur = Field<double>(Box{{0, 0, 0}, lv.n}, 0, ncomp_, 0.0);
             downsample(prev, pl.n, cur);
-            for (int a = 0; a < 3; ++a) blur_axis(cur, lv.n, a, kern, lv.radius);
+            for (int a = 0; a < 3; ++a) blur_axis(cur, lv.n, a, kern, lv.radius, periodic[a]);
         }
         lv.values = to_float(cur);
         levels_.push_back(std::move(lv));
@@ -215,6 +223,11 @@ void sample_level(const Field<float>& f, const PyramidLevel& level, const Vec3& 
         const double q = (x[ax] - origin[ax]) / level.h - 0.5;
         const double fl = std::floor(q);
         fr[ax] = q - fl;
+        if (level.periodic[ax]) {  // the neighbour across the seam
+            i0[ax] = wrap_index(static_cast<int>(fl), level.n[ax]);
+            i1[ax] = wrap_index(static_cast<int>(fl) + 1, level.n[ax]);
+            continue;
+        }
         const int lo = std::max(0, a.lo[ax]), hi = std::min(level.n[ax], a.hi[ax]) - 1;
         i0[ax] = std::clamp(static_cast<int>(fl), lo, hi);
         i1[ax] = std::clamp(static_cast<int>(fl) + 1, lo, hi);

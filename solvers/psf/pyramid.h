@@ -18,6 +18,8 @@
 // Other process grids replicate every level above 0.
 #pragma once
 
+#include <array>
+
 #include <memory>
 #include <utility>
 #include <vector>
@@ -37,6 +39,8 @@ struct PyramidLevel {
     double sigma = 0.0;       // Gaussian standard deviation, level cells (0 for level 0)
     int radius = 0;           // kernel radius, level cells
     bool replicated = false;  // whole level on every rank
+    std::array<bool, 3> periodic{false, false, false};  // the domain's periodic axes: blurred and
+                                                        // sampled across the seam (else mirrored, clamped)
     std::vector<std::pair<int, int>> z_owned;  // per rank: owned z-layers [lo, hi) (distributed)
     Field<float> values;      // owned box + ghost (distributed) or the whole level (replicated)
 };
@@ -64,9 +68,16 @@ private:
 Field<float> gather_layers(const PyramidLevel& level, int need_lo, int need_hi, MPI_Comm comm);
 
 // Trilinear interpolation between the cell centres of a level at world x (clamped to the edge
-// cells); f must hold the 2x2x2 stencil. out: the first ncomp values (-1: f.ncomp()). Pure.
+// cells, or wrapped on the level's periodic axes, which f must hold whole); f must hold the
+// 2x2x2 stencil. out: the first ncomp values (-1: f.ncomp()). Pure.
 void sample_level(const Field<float>& f, const PyramidLevel& level, const Vec3& origin, const Vec3& x,
                   float* out, int ncomp = -1);
+
+// Index i wrapped into [0, n) (periodic axes).
+inline int wrap_index(int i, int n) {
+    const int m = i % n;
+    return m < 0 ? m + n : m;
+}
 
 // Half-sample reflection of index i into [0, n).
 inline int reflect_index(int i, int n) {
