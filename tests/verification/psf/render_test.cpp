@@ -226,5 +226,38 @@ TEST(PsfModel, FluenceIndependentOfRanksAndPositiveInTheCloud) {
     EXPECT_EQ(positive, cells);
 }
 
+// The absolute size of the equivalent fluence (a wrong E0, 4π, factor 2 or sign of g fails):
+// an optically thin uniform medium under an overhead sun E0. At depth tau_rho below the top, the
+// scattering depth to the sun is l2 = sigma_s tau_rho << 1, the light volume is laterally uniform
+// and nearly 1, so fluence = E0 T G(l2) with G(l) -> l (1+g)/(1-g) (README: the thin-medium
+// limit of eq. 17, (1+g)/(1-g) times the singly scattered light's l).
+TEST(PsfModel, ThinMediumFluenceIsE0TTimesTheSmallLLimitOfG) {
+    Scene s = base_scene();
+    s.grid.n = {16, 16, 16};
+    s.grid.cell_size = 1.0;
+    s.medium.kind = MediumSpec::Kind::box;
+    s.bands = {BandOptics{"gray", 1e-4, 0.5, 0.3}};
+    s.sun.enabled = true;
+    s.sun.direction = {0.0, 0.0, -1.0};
+    s.sun.irradiance = {2.0};
+    World w = make_world(MPI_COMM_WORLD, s);
+    Report report;
+    w.light = compute_light_transport(*w.d, w.medium, make_lights(s), report, {}, s.light.method);
+    const SolveContext ctx{s, *w.d, w.medium, w.light, report};
+    DiffuseSolution out;
+    make_psf_model(PsfOptions{})->solve(ctx, out);
+    const double g = 0.3, sigma_s = 0.5e-4;
+    double worst = 0.0;
+    for_each_cell(w.d->local(), [&](int i, int j, int k) {
+        const double tau_rho = 16.0 - (k + 0.5);  // rho = 1, h = 1 m
+        const double l2 = sigma_s * tau_rho;
+        const double expect = 2.0 * std::exp(-1e-4 * tau_rho) * l2 * (1 + g) / (1 - g);
+        worst = std::max(worst, std::abs(out.fluence[0](i, j, k) / expect - 1.0));
+    });
+    MPI_Allreduce(MPI_IN_PLACE, &worst, 1, MPI_DOUBLE, MPI_MAX, w.d->comm());
+    if (rank() == 0) std::printf("    thin medium: max |fluence / (E0 T l2 (1+g)/(1-g)) - 1| = %.2e\n", worst);
+    EXPECT_LT(worst, 0.01);
+}
+
 }  // namespace
 }  // namespace nimbus
