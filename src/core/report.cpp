@@ -1,5 +1,7 @@
 #include "src/core/report.h"
 
+#include "src/core/bcast.h"
+
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -26,10 +28,7 @@ nlohmann::json Report::summarize(MPI_Comm comm) const {
     // Rank 0's phase list defines the order; every rank reduces over the same names.
     std::string names;
     for (auto& [n, t] : times_) names += n + '\n';
-    int len = static_cast<int>(names.size());
-    MPI_Bcast(&len, 1, MPI_INT, 0, comm);
-    names.resize(static_cast<size_t>(len));
-    MPI_Bcast(names.data(), len, MPI_CHAR, 0, comm);
+    names = bcast_string(comm, 0, names);
     std::vector<std::string> order;
     for (size_t p = 0, q; (q = names.find('\n', p)) != std::string::npos; p = q + 1)
         order.push_back(names.substr(p, q - p));
@@ -49,12 +48,7 @@ nlohmann::json Report::summarize(MPI_Comm comm) const {
     out["ranks"] = size;
     // Values are rank 0's (they may differ per rank): broadcast so every rank returns the same
     // JSON, which collective writers (HDF5 attributes) require.
-    std::string values = rank == 0 ? values_.dump() : std::string();
-    int vlen = static_cast<int>(values.size());
-    MPI_Bcast(&vlen, 1, MPI_INT, 0, comm);
-    values.resize(static_cast<size_t>(vlen));
-    MPI_Bcast(values.data(), vlen, MPI_CHAR, 0, comm);
-    out["values"] = nlohmann::json::parse(values);
+    out["values"] = nlohmann::json::parse(bcast_string(comm, 0, rank == 0 ? values_.dump() : std::string()));
     return out;
 }
 

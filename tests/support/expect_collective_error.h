@@ -9,6 +9,7 @@
 #include <functional>
 #include <string>
 
+#include "src/core/bcast.h"
 #include "src/core/error.h"
 
 namespace nimbus::test {
@@ -22,12 +23,7 @@ inline void expect_collective_error(const std::function<void()>& fn, const std::
         message = e.what();
     }
     EXPECT_NE(message.find(part), std::string::npos) << "message: '" << message << "'";
-    int rank = 0;
-    MPI_Comm_rank(comm, &rank);
-    int len = static_cast<int>(message.size());
-    MPI_Bcast(&len, 1, MPI_INT, 0, comm);
-    std::string first = rank == 0 ? message : std::string(static_cast<size_t>(len), '\0');
-    MPI_Bcast(first.data(), len, MPI_CHAR, 0, comm);
+    const std::string first = bcast_string(comm, 0, message);
     int same = first == message ? 1 : 0, all = 0;
     MPI_Allreduce(&same, &all, 1, MPI_INT, MPI_MIN, comm);
     EXPECT_EQ(all, 1) << "the ranks threw different errors (this one: '" << message << "')";

@@ -12,8 +12,8 @@
 
 #include "io/output/hdf5_reader.h"
 #include "io/output/hdf5_writer.h"
-#include "sample_fields.h"
-#include "scratch_dir.h"
+#include "tests/unit/io_output/sample_fields.h"
+#include "tests/support/scratch_dir.h"
 #include "src/core/error.h"
 #include "tests/support/mpi_test.h"
 

@@ -19,7 +19,7 @@
 #include <vector>
 
 #include "io/output/image_io.h"
-#include "scratch_dir.h"
+#include "tests/support/scratch_dir.h"
 #include "src/core/error.h"
 #include "tests/support/mpi_test.h"
 

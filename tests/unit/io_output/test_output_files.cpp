@@ -16,8 +16,9 @@
 #include "io/output/hdf5_reader.h"
 #include "io/output/hdf5_writer.h"
 #include "io/output/output_files.h"
-#include "sample_fields.h"
-#include "scratch_dir.h"
+#include "tests/unit/io_output/sample_fields.h"
+#include "tests/support/scratch_dir.h"
+#include "src/core/bcast.h"
 #include "src/core/error.h"
 #include "tests/support/expect_collective_error.h"
 #include "tests/support/file_size_limit.h"
@@ -50,11 +51,7 @@ TEST(OutputFiles, TemporariesAreUniquePerRunAndAgreedByEveryRank) {
               fs::path(final_path).parent_path());  // same folder: rename
     EXPECT_EQ(ta.rfind(final_path, 0), 0u) << ta;   // recognisable: starts with the final name
 
-    std::string t0 = ta;
-    int len = static_cast<int>(t0.size());
-    MPI_Bcast(&len, 1, MPI_INT, 0, MPI_COMM_WORLD);
-    t0.resize(static_cast<size_t>(len));
-    MPI_Bcast(t0.data(), len, MPI_CHAR, 0, MPI_COMM_WORLD);
+    const std::string t0 = bcast_string(MPI_COMM_WORLD, 0, ta);
     EXPECT_EQ(t0, ta) << "ranks disagree on the temporary name";
 
     EXPECT_EQ(a.with_final_names("cannot write '" + ta + "': full"),

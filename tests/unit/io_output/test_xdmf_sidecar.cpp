@@ -14,8 +14,8 @@
 #include "io/output/hdf5_reader.h"
 #include "io/output/hdf5_writer.h"
 #include "io/output/xdmf.h"
-#include "sample_fields.h"
-#include "scratch_dir.h"
+#include "tests/unit/io_output/sample_fields.h"
+#include "tests/support/scratch_dir.h"
 
 namespace nimbus {
 namespace {

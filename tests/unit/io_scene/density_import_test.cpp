@@ -12,9 +12,10 @@
 #include <vector>
 
 #include "io/scene/density_import.h"
+#include "src/core/bcast.h"
 #include "src/core/error.h"
 #include "tests/support/mpi_test.h"
-#include "tests/unit/io_scene/temp_dir.h"
+#include "tests/support/scratch_dir.h"
 
 namespace nimbus {
 namespace {
@@ -100,11 +101,7 @@ void expect_error_everywhere(Fn&& fn, std::initializer_list<std::string> pieces)
     int caught = msg.empty() ? 0 : 1, total = 0;
     MPI_Allreduce(&caught, &total, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD);
     EXPECT_EQ(total, test::world_size()) << "not every rank threw";
-    int len = static_cast<int>(msg.size());
-    MPI_Bcast(&len, 1, MPI_INT, 0, MPI_COMM_WORLD);
-    std::string root(static_cast<size_t>(len), '\0');
-    if (test::world_rank() == 0) root = msg;
-    MPI_Bcast(root.data(), len, MPI_CHAR, 0, MPI_COMM_WORLD);
+    const std::string root = bcast_string(MPI_COMM_WORLD, 0, msg);
     EXPECT_EQ(msg, root) << "ranks disagree";
     EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
     for (const auto& p : pieces) EXPECT_NE(msg.find(p), std::string::npos) << "missing '" << p << "' in: " << msg;
@@ -122,7 +119,7 @@ protected:
 };
 
 TEST_P(DensityImport, Hdf5DoubleDataset) {
-    test::TempDir dir(std::string("h5d_") + GetParam().name);
+    test::ScratchDir dir(std::string("h5d_") + GetParam().name);
     write_h5(dir.file("d.h5"), "density", {4, 5, 6}, H5T_IEEE_F64LE, values<double>(kN));
     const Decomposition d = decomp();
     Field<double> rho(d.local(), 1, 1, -7.0);  // garbage ghosts must be overwritten
@@ -131,7 +128,7 @@ TEST_P(DensityImport, Hdf5DoubleDataset) {
 }
 
 TEST_P(DensityImport, Hdf5Float32AndIntegerDatasetsAreConverted) {
-    test::TempDir dir(std::string("h5f_") + GetParam().name);
+    test::ScratchDir dir(std::string("h5f_") + GetParam().name);
     write_h5(dir.file("f.h5"), "rho", {4, 5, 6}, H5T_IEEE_F32BE, values<float>(kN));
     const Decomposition d = decomp();
     Field<double> rho;  // unallocated: read_density sizes it
@@ -152,7 +149,7 @@ TEST_P(DensityImport, Hdf5Float32AndIntegerDatasetsAreConverted) {
 }
 
 TEST_P(DensityImport, RawFloat32) {
-    test::TempDir dir(std::string("raw_") + GetParam().name);
+    test::ScratchDir dir(std::string("raw_") + GetParam().name);
     write_raw(dir.file("d.raw"), values<float>(kN));
     const Decomposition d = decomp();
     Field<double> rho(d.local(), 1);
@@ -168,7 +165,7 @@ INSTANTIATE_TEST_SUITE_P(
     [](const auto& p) { return std::string(p.param.name); });
 
 TEST(DensityImportErrors, RawFileOfWrongSize) {
-    test::TempDir dir("raw_size");
+    test::ScratchDir dir("raw_size");
     std::vector<float> v = values<float>(kN);
     v.pop_back();
     write_raw(dir.file("short.raw"), v);
@@ -179,7 +176,7 @@ TEST(DensityImportErrors, RawFileOfWrongSize) {
 }
 
 TEST(DensityImportErrors, MissingFile) {
-    test::TempDir dir("missing");
+    test::ScratchDir dir("missing");
     const Decomposition d(MPI_COMM_WORLD, kN);
     Field<double> rho(d.local(), 1);
     for (auto kind : {MediumSpec::Kind::raw, MediumSpec::Kind::hdf5})
@@ -188,7 +185,7 @@ TEST(DensityImportErrors, MissingFile) {
 }
 
 TEST(DensityImportErrors, NotAnHdf5File) {
-    test::TempDir dir("not_h5");
+    test::ScratchDir dir("not_h5");
     write_raw(dir.file("d.h5"), values<float>(kN));
     const Decomposition d(MPI_COMM_WORLD, kN);
     Field<double> rho(d.local(), 1);
@@ -197,7 +194,7 @@ TEST(DensityImportErrors, NotAnHdf5File) {
 }
 
 TEST(DensityImportErrors, NanInFile) {
-    test::TempDir dir("nan");
+    test::ScratchDir dir("nan");
     const int at = 3 + kN[0] * (2 + kN[1] * 3);  // cell (3, 2, 3): owned by the last rank
     write_raw(dir.file("nan.raw"), values<float>(kN, at));
     write_h5(dir.file("nan.h5"), "density", {4, 5, 6}, H5T_IEEE_F64LE, values<double>(kN, at));
@@ -210,7 +207,7 @@ TEST(DensityImportErrors, NanInFile) {
 }
 
 TEST(DensityImportErrors, NegativeValueInFile) {
-    test::TempDir dir("negative");
+    test::ScratchDir dir("negative");
     std::vector<float> v = values<float>(kN);
     v[0] = -1.0f;
     write_raw(dir.file("neg.raw"), v);
@@ -221,7 +218,7 @@ TEST(DensityImportErrors, NegativeValueInFile) {
 }
 
 TEST(DensityImportErrors, MissingDataset) {
-    test::TempDir dir("no_dataset");
+    test::ScratchDir dir("no_dataset");
     write_h5(dir.file("d.h5"), "other", {4, 5, 6}, H5T_IEEE_F64LE, values<double>(kN));
     const Decomposition d(MPI_COMM_WORLD, kN);
     Field<double> rho(d.local(), 1);
@@ -233,7 +230,7 @@ TEST(DensityImportErrors, MissingDataset) {
 }
 
 TEST(DensityImportErrors, DatasetShapeMustMatchTheGrid) {
-    test::TempDir dir("shape");
+    test::ScratchDir dir("shape");
     write_h5(dir.file("d.h5"), "density", {4, 6, 5}, H5T_IEEE_F64LE, values<double>(kN));
     write_h5(dir.file("flat.h5"), "density", {120}, H5T_IEEE_F64LE, values<double>(kN));
     const Decomposition d(MPI_COMM_WORLD, kN);

@@ -11,7 +11,7 @@
 #include "src/scene/emission.h"
 #include "src/scene/medium.h"
 #include "tests/support/mpi_test.h"
-#include "tests/unit/io_scene/temp_dir.h"
+#include "tests/support/scratch_dir.h"
 
 namespace nimbus {
 namespace {
@@ -351,7 +351,7 @@ TEST(SceneLoad, UnitsAndIntegersForFloats) {
 }
 
 TEST(SceneLoad, DensityFileResolvesAgainstTheSceneFolder) {
-    test::TempDir dir("resolve");
+    test::ScratchDir dir("resolve");
     if (test::world_rank() == 0) {
         std::ofstream(dir.file("d.raw")) << "x";
         std::filesystem::create_directories(dir.path() / "sub");

@@ -13,7 +13,7 @@
 #include <cmath>
 #include <numbers>
 
-#include "diffusion_test_util.h"
+#include "tests/verification/diffusion/diffusion_test_util.h"
 #include "solvers/diffusion/diffusion.h"
 #include "solvers/diffusion/solve_diffusion.h"
 #include "src/scene/medium.h"

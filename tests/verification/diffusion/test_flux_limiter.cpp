@@ -6,7 +6,7 @@
 #include <cmath>
 #include <numbers>
 
-#include "diffusion_test_util.h"
+#include "tests/verification/diffusion/diffusion_test_util.h"
 #include "solvers/diffusion/diffusion.h"
 #include "solvers/diffusion/flux_limiter.h"
 #include "tests/support/mpi_test.h"

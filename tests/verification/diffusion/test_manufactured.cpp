@@ -15,7 +15,7 @@
 #include <cmath>
 #include <numbers>
 
-#include "diffusion_test_util.h"
+#include "tests/verification/diffusion/diffusion_test_util.h"
 #include "solvers/diffusion/solve_diffusion.h"
 #include "tests/support/mpi_test.h"
 

@@ -10,7 +10,7 @@
 #include <array>
 #include <string>
 
-#include "diffusion_test_util.h"
+#include "tests/verification/diffusion/diffusion_test_util.h"
 #include "solvers/diffusion/diffusion.h"
 #include "src/core/error.h"
 #include "src/scene/medium.h"
