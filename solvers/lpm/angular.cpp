@@ -80,7 +80,20 @@ std::vector<Angular::Sample> Angular::sphere_samples(int per_face) const {
     return s;
 }
 
-std::vector<double> Angular::form_factors(double g) const {
+const std::vector<double>& Angular::form_factors(double g) const {
+    auto it = form_factors_.find(g);
+    if (it == form_factors_.end()) it = form_factors_.emplace(g, compute_form_factors(g)).first;
+    return it->second;
+}
+
+const std::vector<double>& Angular::beam_factors(double g, const Vec3& w) const {
+    const std::array<double, 4> key{g, w.x, w.y, w.z};
+    auto it = beam_factors_.find(key);
+    if (it == beam_factors_.end()) it = beam_factors_.emplace(key, compute_beam_factors(g, w)).first;
+    return it->second;
+}
+
+std::vector<double> Angular::compute_form_factors(double g) const {
     const int nm = coarse_bins(), nb = map_bins();
     std::vector<double> P(static_cast<size_t>(nb * nm), 0.0);
     if (g == 0.0) {
@@ -145,7 +158,7 @@ int Angular::coarse_bin_of(const Vec3& w) const {
     return f * k_ * k_ + cell(w[v_axis(a)] / wa) * k_ + cell(w[u_axis(a)] / wa);
 }
 
-std::vector<double> Angular::beam_factors(double g, const Vec3& w) const {
+std::vector<double> Angular::compute_beam_factors(double g, const Vec3& w) const {
     std::vector<double> b(static_cast<size_t>(coarse_bins()), 0.0);
     for (const Sample& s : sphere_samples(4 * samples_for(g, k_)))
         b[static_cast<size_t>(s.coarse)] += s.weight * hg_phase(g, dot(w, s.w));

@@ -20,6 +20,8 @@
 // scattering conserves energy exactly for any g; for g = 0 the rows are |Ω^m|/4π exactly.
 #pragma once
 
+#include <array>
+#include <map>
 #include <vector>
 
 #include "src/core/vec3.h"
@@ -56,10 +58,12 @@ public:
     int coarse_bin_of(const Vec3& w) const;  // the coarse bin containing direction w
 
     // P^{n,m} for HG asymmetry g: row-major [map_bins()][coarse_bins()], rows sum to 1.
-    std::vector<double> form_factors(double g) const;
+    // Computed once per g and kept (bands sharing g share them; the quadrature costs ~1/(1-|g|)²:
+    // tens of seconds at g = 0.99).
+    const std::vector<double>& form_factors(double g) const;
     // ∫_{Ω^m} p(ω·w) dω for a collimated beam travelling along unit w (the first-scatter
-    // source's angular split), normalized to Σ_m = 1.
-    std::vector<double> beam_factors(double g, const Vec3& w) const;
+    // source's angular split), normalized to Σ_m = 1. Kept per (g, w) like form_factors.
+    const std::vector<double>& beam_factors(double g, const Vec3& w) const;
 
 private:
     struct Sample {
@@ -71,7 +75,12 @@ private:
     std::vector<Sample> sphere_samples(int per_face) const;
     static int samples_for(double g, int multiple);
 
+    std::vector<double> compute_form_factors(double g) const;
+    std::vector<double> compute_beam_factors(double g, const Vec3& w) const;
+
     int p_, k_;
+    mutable std::map<double, std::vector<double>> form_factors_;  // by g
+    mutable std::map<std::array<double, 4>, std::vector<double>> beam_factors_;  // by (g, w)
     std::vector<Vec3> dir_, mean_;
     std::vector<double> omega_, coarse_omega_;
     std::vector<int> coarse_of_;

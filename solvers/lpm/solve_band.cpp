@@ -37,7 +37,7 @@ BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransp
     Field<double> kappa(own, 1, 1, 0.0);
     for (size_t i = 0; i < kappa.size(); ++i) kappa.data()[i] = m.rho.data()[i] * bo.sigma_t;
 
-    const std::vector<double> P = ang.form_factors(bo.g);
+    const std::vector<double>& P = ang.form_factors(bo.g);
     std::vector<double> deposit(P.size());
     for (int n = 0; n < ang.map_bins(); ++n)
         for (int c = 0; c < nm; ++c)
@@ -50,7 +50,7 @@ BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransp
         const DirectionalLight& dl = light.lights[l];
         const double E0 = band_value(dl.E0, band);
         if (E0 == 0.0) continue;
-        const std::vector<double> bf = ang.beam_factors(bo.g, dl.w);
+        const std::vector<double>& bf = ang.beam_factors(bo.g, dl.w);
         for_each_cell(own, [&](int i, int j, int k) {
             const double q = kappa(i, j, k) * bo.albedo * E0 *
                              light.transmittance(static_cast<int>(l), bo.sigma_t, i, j, k);
