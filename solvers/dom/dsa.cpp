@@ -85,9 +85,8 @@ DiffusionSynthetic::DiffusionSynthetic(const Decomposition& d, const BandProblem
 
 DiffusionSynthetic::~DiffusionSynthetic() = default;
 
-int DiffusionSynthetic::correct(const Field<double>& fluence_old, Field<double>& fluence, Report& report,
+int DiffusionSynthetic::correct(const Field<double>& fluence_old, Field<double>& fluence,
                                 const Field<double>* mirror_source) {
-    (void)report;
     const Box& own = d_.local();
     if (change_.owned().empty()) change_ = Field<double>(own, 0, 1, 0.0);
     for_each_cell(own, [&](int i, int j, int k) { change_(i, j, k) = fluence(i, j, k) - fluence_old(i, j, k); });

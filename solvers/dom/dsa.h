@@ -57,7 +57,7 @@ public:
     // true relative residual stays above the tolerance.
     // mirror_source: dJ / h per boundary cell of the high mirror faces (TransportSweeper::
     // for_each_lagged_mirror_change), owned cells, or null.
-    int correct(const Field<double>& fluence_old, Field<double>& fluence, Report& report,
+    int correct(const Field<double>& fluence_old, Field<double>& fluence,
                 const Field<double>* mirror_source = nullptr);
     // Collective. δ = A^{-1} sigma_s r for a fluence change r (W/m², owned cells, 1 component),
     // into last_correction(). Same return value and errors as correct(). A linear map of r up to

@@ -94,7 +94,7 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
             mirror_source.fill(0.0);
             sweeper.for_each_lagged_mirror_change(
                 [&](int i, int j, int k, double dJ) { mirror_source(i, j, k) += dJ / p.h; });
-            res.dsa_linear_iterations += dsa->correct(fluence_old, out.fluence, report, &mirror_source);
+            res.dsa_linear_iterations += dsa->correct(fluence_old, out.fluence, &mirror_source);
             const auto& delta = dsa->last_correction();
             for_each_cell(own, [&](int i, int j, int k) { out.phi(i, j, k, 0) += y00 * delta(i, j, k); });
         }

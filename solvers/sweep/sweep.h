@@ -103,7 +103,6 @@ SweepStats run(const Decomposition& d, Field<double>& psi, const Octant& o, cons
     // Whole x and y faces come first (only non-empty with 2-D/3-D process grids).
     recv_plane(0, own);
     recv_plane(1, own);
-    const AxisRange ry = upwind_range(own, 1, o);
     const AxisRange rx = upwind_range(own, 0, o);
     const AxisRange rz = upwind_range(own, 2, o);
     for (int t = 0; t < ntiles; ++t) {
@@ -120,7 +119,6 @@ SweepStats run(const Decomposition& d, Field<double>& psi, const Octant& o, cons
         send_plane(2, tile, out[static_cast<size_t>(t)]);
         ++stats.tiles;
     }
-    (void)ry;
     send_plane(0, own, out[static_cast<size_t>(ntiles)]);
     send_plane(1, own, out[static_cast<size_t>(ntiles) + 1]);
     MPI_Waitall(static_cast<int>(sends.size()), sends.data(), MPI_STATUSES_IGNORE);

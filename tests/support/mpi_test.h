@@ -1,4 +1,4 @@
-// Helpers for tests that run on 1 and 2 ranks.
+// Helpers for the tests that run on MPI_COMM_WORLD (registered at 1, 2 and 3 ranks).
 #pragma once
 
 #include <mpi.h>
