@@ -158,7 +158,7 @@ void Hdf5Writer::open(const Decomposition& d, const Grid& grid, OutputFiles& fil
     }
     check_collective(comm, impl->file.valid(), cannot_write(path_));
     impl->reserve(0, "output file '" + path_ + "'");  // throws: impl closes the file
-    impl_ = impl.release();
+    impl_ = std::move(impl);
 }
 
 Hdf5Writer::~Hdf5Writer() {
@@ -166,7 +166,6 @@ Hdf5Writer::~Hdf5Writer() {
         h5::QuietErrors quiet;
         impl_->file.reset();  // collective MPI_File_close inside
     }
-    delete impl_;
 }
 
 const std::string& Hdf5Writer::temporary_path() const { return impl_->tmp_path; }

@@ -61,7 +61,7 @@ private:
     void open(const Decomposition& d, const Grid& grid, OutputFiles& files);
 
     std::unique_ptr<OutputFiles> own_files_;  // the set of a writer that commits alone
-    Impl* impl_;
+    std::unique_ptr<Impl> impl_;  // Impl is complete in the .cpp, where the destructor is
     std::string path_;
 };
 
