@@ -62,7 +62,7 @@ int run(int argc, char** argv) {
     const dom::AngularSet ang = dom::make_angular_set(o);
     dom::BandProblem p = dom::make_band_optics(m, 0, d.local(), ang, false);
     p.emission.fill(1.0);
-    dom::add_light_sources(p, m, LightTransport{}, 0, ang);
+    dom::add_light_sources(p, d, m, LightTransport{}, 0, ang);
     sweep::SweepOptions sopt;
     sopt.tile_rows = tile_rows;
     sopt.octant_overlap = overlap;

@@ -37,8 +37,9 @@ DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const Lig
             Vec3 ew;
             for (size_t l = 0; l < nl; ++l) {
                 if (weight[l] == 0.0) continue;
-                const double et = weight[l] *
-                                  light.transmittance(static_cast<int>(l), s.sigma_t, i, j, k);
+                // The cell's mean of the (delta-scaled) T: the finite-volume source of the cell.
+                const double et = weight[l] * light.transmittance_mean(d, m.rho, static_cast<int>(l), s.sigma_t,
+                                                                       m.grid.h, i, j, k);
                 e += et;
                 ew += light.lights[l].w * et;
             }

@@ -39,7 +39,8 @@ LightTransport without_sky(const LightTransport& lt) {
     return r;
 }
 
-void add_light_sources(BandProblem& p, const Medium& m, const LightTransport& lt, int b, const AngularSet& ang) {
+void add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, const LightTransport& lt, int b,
+                       const AngularSet& ang) {
     const BandOptics& o = m.bands[static_cast<size_t>(b)];
     const int nl = static_cast<int>(lt.lights.size());
     const Box own = p.kappa.owned();
@@ -70,7 +71,9 @@ void add_light_sources(BandProblem& p, const Medium& m, const LightTransport& lt
         for_each_cell(own, [&](int i, int j, int k) {
             const double tau = o.sigma_t * lt.tau_rho[static_cast<size_t>(l)](i, j, k);
             const double T = std::exp(-tau), Ts = std::exp(-scale * tau);
-            p.amp(i, j, k, l) = p.sigma_s(i, j, k) * E0 * Ts;
+            // The source integrates over the cell: the cell's mean of the scaled beam's T.
+            p.amp(i, j, k, l) = p.sigma_s(i, j, k) * E0 *
+                                lt.transmittance_mean(d, m.rho, l, scale * o.sigma_t, m.grid.h, i, j, k);
             const double fwd = E0 * (Ts - T);
             p.forward_fluence(i, j, k) += fwd;
             for (int c = 0; c < 3; ++c) p.forward_flux(i, j, k, c) += fwd * light.w[c];

@@ -48,7 +48,8 @@ struct BandProblem {
 BandProblem make_band_optics(const Medium& m, int b, const Box& own, const AngularSet& ang, bool delta_m);
 
 // Adds the first-collision sources of every light term of lt (band b) to p.
-void add_light_sources(BandProblem& p, const Medium& m, const LightTransport& lt, int b, const AngularSet& ang);
+void add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, const LightTransport& lt, int b,
+                       const AngularSet& ang);
 
 // The light terms of lt without the sky's direction bins ("sky[...]", src/physics/lights.h), for
 // DomOptions::sky = "boundary" (the sky then enters as boundary radiance). Copies the fields.

@@ -136,7 +136,7 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
     for (int b = 0; b < m.nbands(); ++b) {
         dom::BandProblem p = dom::make_band_optics(m, b, own, ang, opt_.delta_m);
         check_diamond_dsa(d, p);
-        dom::add_light_sources(p, m, lights, b, ang);
+        dom::add_light_sources(p, d, m, lights, b, ang);
         sweeper.reset_reflections();
         if (bc.sky) sweeper.set_sky_radiance(band_value(ctx.scene.sky.radiance, b));
         if (!sources.empty())

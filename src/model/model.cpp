@@ -1,10 +1,48 @@
 #include "src/model/model.h"
 
+#include <cmath>
 #include <numbers>
 
 #include "src/physics/phase.h"
 
 namespace nimbus {
+
+namespace {
+
+// log(sinh(x) / x) for x >= 0, without overflow (x up to ~1e300).
+double log_sinhc(double x) {
+    if (x < 1e-3) return x * x / 6.0;
+    return x + std::log1p(-std::exp(-2.0 * x)) - std::log(2.0 * x);
+}
+
+}  // namespace
+
+double LightTransport::transmittance_mean(const Decomposition& d, const Field<double>& rho, int light,
+                                          double sigma_t, double h, int i, int j, int k) const {
+    const Field<double>& tau = tau_rho[static_cast<size_t>(light)];
+    const double tc = tau(i, j, k), rc = rho(i, j, k);
+    const int c[3] = {i, j, k};
+    const Box& dom = d.global();
+    Vec3 g;  // ∇tau_rho (density / metre)
+    for (int a = 0; a < 3; ++a) {
+        int lo[3] = {i, j, k}, hi[3] = {i, j, k};
+        --lo[a], ++hi[a];
+        // A neighbour serves if it is in the domain and, when this cell has density, has some too.
+        const auto serves = [&](const int* nb, bool inside) { return inside && (rc == 0.0 || rho(nb[0], nb[1], nb[2]) > 0.0); };
+        const bool use_lo = serves(lo, d.periodic(a) || c[a] > dom.lo[a]);
+        const bool use_hi = serves(hi, d.periodic(a) || c[a] + 1 < dom.hi[a]);
+        double v = 0.0;
+        if (use_lo && use_hi) v = (tau(hi[0], hi[1], hi[2]) - tau(lo[0], lo[1], lo[2])) / (2.0 * h);
+        else if (use_hi) v = (tau(hi[0], hi[1], hi[2]) - tc) / h;
+        else if (use_lo) v = (tc - tau(lo[0], lo[1], lo[2])) / h;
+        g[a] = v;
+    }
+    const Vec3& w = lights[static_cast<size_t>(light)].w;
+    g = g - w * dot(w, g) + w * rc;  // along the light: d tau_rho / ds = rho, exactly
+    double log_mean = -sigma_t * tc;
+    for (int a = 0; a < 3; ++a) log_mean += log_sinhc(0.5 * sigma_t * h * std::abs(g[a]));
+    return std::exp(log_mean);
+}
 
 double LightTransport::fluence_reduced(const Medium& m, int b, int i, int j, int k) const {
     double sum = 0.0;

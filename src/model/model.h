@@ -34,6 +34,17 @@ struct LightTransport {
     double transmittance(int light, double sigma_t, int i, int j, int k) const {
         return std::exp(-sigma_t * tau_rho[static_cast<size_t>(light)](i, j, k));
     }
+    // The mean of T over cell (i, j, k) of density rho (metres h), for the first-scatter source of
+    // a cell-centred scheme, whose cell integrates kappa a E0 T: T at the centre is a midpoint
+    // rule, 4% low at kappa h = 1 and e^{-50}/(1/100) off at kappa h = 100 (vertical sun). With
+    // tau linear across the cell, <e^{-tau}> = e^{-tau_c} Π_a sinh(h g_a / 2) / (h g_a / 2),
+    // g = sigma_t ∇tau_rho: along the light exactly rho sigma_t (w·∇tau_rho = rho), across it
+    // from central differences of the neighbours' tau_rho, one-sided at a domain face and next
+    // to an empty neighbour (where tau_rho bends: the surface of a cloud). Exact for a
+    // homogeneous medium under a plane boundary; d gives the domain and periodic axes, rho the
+    // density with its ghost layer.
+    double transmittance_mean(const Decomposition& d, const Field<double>& rho, int light, double sigma_t, double h,
+                              int i, int j, int k) const;
     // Reduced-incident fluence ∫ I_ri dw = Σ E0 T (W/m²) in band b at cell (i, j, k).
     double fluence_reduced(const Medium& m, int b, int i, int j, int k) const;
     // First-scatter source moments (DESIGN §1), band b, cell (i, j, k):

@@ -1,7 +1,9 @@
 // The light pass against Beer-Lambert and a brute-force ray march; 1 rank vs 2 ranks.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include "solvers/light/sun_transmittance.h"
 #include "src/core/halo.h"
@@ -44,6 +46,37 @@ TEST(SunTransmittance, BeerLambertInAHomogeneousSlabNormalAndOblique) {
             const double want = rho * depth / std::cos(th);
             ASSERT_NEAR(lt.tau_rho[0](i, j, k), want, 1e-12 * want) << theta_deg;
         });
+    }
+}
+
+// The cell mean of T (LightTransport::transmittance_mean, the first-scatter source of the
+// deterministic models) in a slab of thick cells (kappa h = 2 and 100) between vacuum layers,
+// periodic x/y, the exact light pass: tau is linear across every cell, so the mean is exact:
+// e^{-tau_top} (1 - e^{-kappa h / mu}) / (kappa h / mu) with tau_top the depth at the cell's
+// top face (the centre value is 15% low at kappa h = 2 and e^{-50} instead of 1/100 at 100).
+TEST(SunTransmittance, CellMeanIsExactInAThickSlab) {
+    const Int3 n{4, 4, 12};
+    const double h = 0.5;
+    LitMedium s = make(MPI_COMM_WORLD, n, h, [&](int, int, int k) { return k >= 3 && k < 9 ? 1.0 : 0.0; },
+                       {true, true, false});
+    for (double sigma_t : {4.0, 200.0}) {  // kappa h = 2, 100
+        for (double theta_deg : {0.0, 40.0}) {
+            const double th = theta_deg * std::numbers::pi / 180, mu = std::cos(th);
+            const Vec3 w{std::sin(th) * 0.6, std::sin(th) * 0.8, -mu};
+            Report r;
+            const auto lt = compute_light_transport(s.d, s.m, {{"sun", w, {1.0}}}, r, {}, LightSpec::Method::exact);
+            double worst = 0.0;
+            for_each_cell(s.d.local(), [&](int i, int j, int k) {
+                if (k < 3 || k >= 9) return;
+                const double x = sigma_t * h / mu;                    // optical thickness of the cell along w
+                const double tau_top = sigma_t * (9 - (k + 1)) * h / mu;  // at the cell's top face
+                const double want = std::exp(-tau_top) * -std::expm1(-x) / x;
+                const double got = lt.transmittance_mean(s.d, s.m.rho, 0, sigma_t, h, i, j, k);
+                if (want > 1e-300) worst = std::max(worst, std::abs(got / want - 1.0));
+            });
+            MPI_Allreduce(MPI_IN_PLACE, &worst, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+            EXPECT_LT(worst, 1e-9) << "sigma_t " << sigma_t << " theta " << theta_deg;
+        }
     }
 }
 

@@ -25,7 +25,7 @@ double absorber_slab_error(int nz, double Z, int order, double* interior_error =
     const dom::AngularSet ang = dom::make_angular_set(o);
     dom::BandProblem p = dom::make_band_optics(w.m, 0, w.d.local(), ang, true);
     p.emission.fill(q);
-    dom::add_light_sources(p, w.m, w.light, 0, ang);
+    dom::add_light_sources(p, w.d, w.m, w.light, 0, ang);
     dom::TransportSweeper sweeper(w.d, ang, h, {}, 1e-12);
     dom::SweepOutput out;
     const auto r = dom::iterate_band(w.d, sweeper, ang, p, "source", 1e-12, 5, out, w.report);

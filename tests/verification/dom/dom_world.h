@@ -12,6 +12,7 @@
 
 #include "solvers/dom/dom.h"
 #include "src/core/error.h"
+#include "src/core/halo.h"
 #include "src/model/model.h"
 
 namespace nimbus::test {
@@ -42,6 +43,7 @@ struct DomWorld {
         for_each_cell(d.local(), [&](int i, int j, int k) {
             tau(i, j, k) = (m.grid.n[2] - k - 0.5) * m.grid.h / std::abs(u.z) * m.rho(i, j, k);
         });
+        exchange_halo(tau, d);  // the light pass's contract: ghosts exchanged
         light.tau_rho.push_back(std::move(tau));
     }
     SolveContext ctx() { return {scene, d, m, light, report}; }

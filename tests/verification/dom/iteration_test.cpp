@@ -38,6 +38,7 @@ test::DomWorld cloud(MPI_Comm comm) {
         for (int kk = k + 1; kk < 12; ++kk) t += rho(kk);
         tau(i, j, k) = t * w.m.grid.h;
     });
+    exchange_halo(tau, w.d);  // the light pass's contract
     return w;
 }
 

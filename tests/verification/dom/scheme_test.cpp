@@ -141,7 +141,7 @@ FixupRun thick_column(bool fixup) {
     const dom::AngularSet ang = dom::make_angular_set(o);
     dom::BandProblem p = dom::make_band_optics(w.m, 0, w.d.local(), ang, true);
     for_each_cell(w.d.local(), [&](int i, int j, int k) { p.emission(i, j, k) = k < nz / 2 ? q : 0.0; });
-    dom::add_light_sources(p, w.m, w.light, 0, ang);
+    dom::add_light_sources(p, w.d, w.m, w.light, 0, ang);
     dom::TransportSweeper sweeper(w.d, ang, h, {}, 1e-13, SpatialScheme::diamond, {}, fixup);
     dom::SweepOutput out;
     const auto r = dom::iterate_band(w.d, sweeper, ang, p, "source", 1e-12, 5, out, w.report);
@@ -337,7 +337,7 @@ ColumnRun emitting_column(int nz, double h, double albedo, const dom::SweepBound
     const dom::AngularSet ang = dom::make_angular_set(level_symmetric(6), 0);
     dom::BandProblem p = dom::make_band_optics(w.m, 0, w.d.local(), ang, true);
     p.emission.fill(1.0);
-    dom::add_light_sources(p, w.m, w.light, 0, ang);
+    dom::add_light_sources(p, w.d, w.m, w.light, 0, ang);
     dom::TransportSweeper sweeper(w.d, ang, h, {}, 1e-13, s, bc);
     dom::SweepOutput out;
     const auto r = dom::iterate_band(w.d, sweeper, ang, p, method, tol, 2000, out, w.report);
@@ -523,6 +523,7 @@ SkySlab sky_slab(const std::string& sky, double albedo, int order, int nz, int b
         w.light.lights.push_back(DirectionalLight{fmt::format("sky[{}]", s), u, {L * 2.0 * kPi / bins}});
         Field<double> tau(w.d.local(), 1, 1, 0.0);
         for_each_cell(w.d.local(), [&](int i, int j, int k) { tau(i, j, k) = (nz - k - 0.5) * h / mu; });
+        exchange_halo(tau, w.d);  // the light pass's contract
         w.light.tau_rho.push_back(std::move(tau));
     }
     DomOptions o;
