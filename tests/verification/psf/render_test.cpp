@@ -200,19 +200,19 @@ TEST(PsfModel, ImageIndependentOfRanksAndBrighterThanSingleScattering) {
     EXPECT_LT(std::abs(sum_fine - sum_dense), std::abs(sum_psf - sum_dense));
 }
 
-TEST(PsfModel, FluenceIndependentOfRanksAndPositiveInTheCloud) {
-    const Scene s = cloud_scene();
-    World w = make_world(MPI_COMM_WORLD, s);
+// The light pass and the psf model's equivalent fluence of scene s on w (collective).
+DiffuseSolution psf_fluence(const Scene& s, World& w) {
     Report report;
     w.light = compute_light_transport(*w.d, w.medium, make_lights(s), report, {}, s.light.method);
-    const SolveContext ctx{s, *w.d, w.medium, w.light, report};
-    DiffuseSolution world;
-    make_psf_model(PsfOptions{})->solve(ctx, world);
-    World ws = make_world(MPI_COMM_SELF, s);
-    ws.light = compute_light_transport(*ws.d, ws.medium, make_lights(s), report, {}, s.light.method);
-    const SolveContext cs{s, *ws.d, ws.medium, ws.light, report};
-    DiffuseSolution self;
-    make_psf_model(PsfOptions{})->solve(cs, self);
+    DiffuseSolution out;
+    make_psf_model(PsfOptions{})->solve(SolveContext{s, *w.d, w.medium, w.light, report}, out);
+    return out;
+}
+
+TEST(PsfModel, FluenceIndependentOfRanksAndPositiveInTheCloud) {
+    const Scene s = cloud_scene();
+    World w = make_world(MPI_COMM_WORLD, s), ws = make_world(MPI_COMM_SELF, s);
+    const DiffuseSolution world = psf_fluence(s, w), self = psf_fluence(s, ws);
     ASSERT_EQ(world.fluence.size(), 3u);
     double worst = 0, peak = 0;
     long positive = 0, cells = 0;
@@ -241,11 +241,7 @@ TEST(PsfModel, ThinMediumFluenceIsE0TTimesTheSmallLLimitOfG) {
     s.sun.direction = {0.0, 0.0, -1.0};
     s.sun.irradiance = {2.0};
     World w = make_world(MPI_COMM_WORLD, s);
-    Report report;
-    w.light = compute_light_transport(*w.d, w.medium, make_lights(s), report, {}, s.light.method);
-    const SolveContext ctx{s, *w.d, w.medium, w.light, report};
-    DiffuseSolution out;
-    make_psf_model(PsfOptions{})->solve(ctx, out);
+    const DiffuseSolution out = psf_fluence(s, w);
     const double g = 0.3, sigma_s = 0.5e-4;
     double worst = 0.0;
     for_each_cell(w.d->local(), [&](int i, int j, int k) {
