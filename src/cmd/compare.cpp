@@ -19,6 +19,7 @@
 
 #include "io/output/hdf5_reader.h"
 #include "io/output/image_io.h"
+#include "io/scene/scene_toml.h"
 #include "src/analysis/compare.h"
 #include "src/cmd/commands.h"
 #include "src/core/error.h"
@@ -26,6 +27,22 @@
 
 namespace nimbus::cmd {
 namespace {
+
+// The bands in the order of the reference run's scene (its /scene attribute), as the user wrote
+// them; names it does not list (or a file without the attribute) keep their place at the end.
+void sort_in_scene_order(const std::string& file, std::vector<std::string>& bands) {
+    std::vector<std::string> order;
+    try {
+        for (const BandOptics& b : load_scene_string(read_string_attribute(file, "/scene", "toml"), file).bands)
+            order.push_back(b.name);
+    } catch (const Error&) {
+        return;
+    }
+    const auto rank = [&](const std::string& name) {
+        return std::find(order.begin(), order.end(), name) - order.begin();
+    };
+    std::stable_sort(bands.begin(), bands.end(), [&](const std::string& x, const std::string& y) { return rank(x) < rank(y); });
+}
 
 // The per-band scalar fields compare can assess (flux_diffuse is a vector field).
 const std::vector<std::string> kFields = {"fluence_diffuse", "fluence_reduced", "transmittance_sun"};
@@ -44,8 +61,9 @@ nlohmann::json compare_runs(const CompareArgs& args) {
             if (!has_link(f, field))
                 throw Error(fmt::format("'{}' has no {}: nimbus writes it only for scenes with a sun "
                                         "(sun.enabled = true)", f, field));
-    const std::vector<std::string> bands = list_group(args.b, field);
+    std::vector<std::string> bands = list_group(args.b, field);  // alphabetical
     if (bands.empty()) throw Error(fmt::format("'{}' has no {} datasets", args.b, field));
+    sort_in_scene_order(args.b, bands);
     const FieldData density = read_field(args.b, "fields/density");
     nlohmann::json out = {{"a", args.a}, {"b", args.b}, {"field", args.field}, {"bands", nlohmann::json::array()}};
     // Comparing runs of different media is almost always a mistake: say so, but go on.

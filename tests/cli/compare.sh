@@ -109,6 +109,8 @@ ab = bands(load("ab"))
 with h5py.File(f"{tmp}/a/nimbus.h5") as fa, h5py.File(f"{tmp}/b/nimbus.h5") as fb:
     rho = fb["fields/density"][...].astype(float)
     check("ab: bands r g b", sorted(ab) == ["b", "g", "r"])
+    # in the scene's order (r, g, b), not the file's alphabetical one
+    check("ab: bands in scene order", [b["band"] for b in load("ab")["bands"]] == ["r", "g", "b"])
     for band, j in ab.items():
         a = fa[f"fields/fluence_diffuse/{band}"][...].astype(float)[rho > 0]
         b = fb[f"fields/fluence_diffuse/{band}"][...].astype(float)[rho > 0]
