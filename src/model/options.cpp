@@ -43,6 +43,12 @@ void DomOptions::validate() const {
     if (order < 2 || order > 16 || order % 2 != 0) throw Error("model.dom.order must be even, 2..16");
     if (polar < 2 || polar % 2 != 0) throw Error("model.dom.polar must be even and >= 2");
     if (azimuthal < 1) throw Error("model.dom.azimuthal must be >= 1");
+    // The product set puts no direction in a coordinate plane only with whole quadrants of
+    // azimuths (src/physics/quadrature.h); checked here so that the error names the key.
+    if (quadrature == "product" && azimuthal % 4 != 0)
+        throw Error(fmt::format("model.dom.azimuthal = {} must be a multiple of 4 with quadrature = \"product\" "
+                                "(no direction in a coordinate plane)",
+                                azimuthal));
     if (legendre_order < 0) throw Error("model.dom.legendre_order must be >= 0");
     if (scheme != "step" && scheme != "diamond")
         throw Error(fmt::format("model.dom.scheme = '{}': allowed are step, diamond", scheme));

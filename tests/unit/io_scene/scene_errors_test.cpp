@@ -232,6 +232,8 @@ TEST(SceneErrors, OtherRanges) {
                  {"medium.kind = \"cube\" is not allowed", "allowed: cumulus, box, sphere, hdf5, raw"});
     expect_error(edit("", "[model.montecarlo]\nbatches = 1"), "batches", {"model.montecarlo.batches", "[2, 4096]"});
     expect_error(edit("", "[model.diffusion]\nsolver = \"jacobi\""), "jacobi", {"model.diffusion.solver", "pfmg"});
+    expect_error(edit("", "[model.dom]\nquadrature = \"product\"\nazimuthal = 6"), "azimuthal = 6",
+                 {"model.dom.azimuthal = 6 must be a multiple of 4"});
     expect_error(edit("kind = \"box\"", "kind = \"raw\""), "kind = \"raw\"", {"medium.kind", "needs medium.file"});
     expect_error(edit("kind = \"box\"", "kind = \"raw\"\nfile = \"no_such_density.raw\""), "file =",
                  {"medium.file", "no_such_density.raw", "file not found"});
