@@ -38,6 +38,7 @@ void say(MPI_Comm comm, fmt::format_string<Args...> f, Args&&... a) {
 }
 
 void info(const RunOptions& opts) {
+    if (!opts.out_dir.empty()) throw Error("--out: info writes no files (--out is an option of nimbus run)");
     MPI_Comm comm = MPI_COMM_WORLD;
     const Scene s = load_run_scene(comm, opts);
     run_collective(comm, [&] { make_model(s.model); });  // as a run: is the model in this build?
@@ -154,6 +155,8 @@ void add_info_command(CLI::App& app) {
     cmd->add_option("scene", opts->scene_path, "scene file (TOML); default: the built-in cloud")->check(CLI::ExistingFile);
     cmd->add_option("--set", opts->overrides, "override a scene key, e.g. --set grid.n=[32,32,32] (repeatable)")
         ->allow_extra_args(false);
+    // `run`'s --out given to info: said so by info(), rather than its folder taken for the scene.
+    cmd->add_option("--out", opts->out_dir, "not an option of info")->group("");
     cmd->callback([opts] { info(*opts); });
 }
 

@@ -36,6 +36,7 @@ check "missing file" 1 "nimbus: error:.*no_such.h5" compare "$tmp/no_such.h5" "$
 check "missing argument" 1 "nimbus: error:.*nimbus compare --help" compare
 check "option without command" 1 "unknown option '--bogus' and no command; commands: run, info, compare" --bogus
 check "empty --out" 1 "nimbus: error: --out: the folder name is empty" run --out ""
+check "info --out" 1 "nimbus: error: --out: info writes no files" info --out "$tmp" "${small[@]}"
 check "grid.n beyond int" 1 "grid.n entry 0 = 3000000000 is outside the range of a 32-bit integer" info --set "grid.n=[3000000000,2,2]"
 check "density file is a folder" 1 "medium.file = \"$tmp\" is a directory" info --set 'medium.kind="raw"' --set "medium.file=\"$tmp\""
 # info's description is its output (stdout, whatever the log level); the log (stderr) is quiet at
