@@ -242,41 +242,6 @@ void fill_padded(const MapFrame& m, const Decomposition& d, const Field<double>&
 
 }  // namespace
 
-void accumulate_ghosts_z(Field<double>& f, const Decomposition& d) {
-    const Box& own = d.local();
-    const int nc = f.ncomp();
-    Box plane = own;
-    auto pack = [&](int k, std::vector<double>& buf) {
-        buf.clear();
-        for (int j = own.lo[1]; j < own.hi[1]; ++j)
-            for (int i = own.lo[0]; i < own.hi[0]; ++i)
-                for (int c = 0; c < nc; ++c) buf.push_back(f(i, j, k, c));
-    };
-    auto add = [&](int k, const std::vector<double>& buf) {
-        size_t n = 0;
-        for (int j = own.lo[1]; j < own.hi[1]; ++j)
-            for (int i = own.lo[0]; i < own.hi[0]; ++i)
-                for (int c = 0; c < nc; ++c) f(i, j, k, c) += buf[n++];
-    };
-    (void)plane;
-    std::vector<double> out, in;
-    const int lo = d.neighbor(2, -1), hi = d.neighbor(2, 1);
-    for (int side = 0; side < 2; ++side) {
-        const int to = side == 0 ? hi : lo, from = side == 0 ? lo : hi;
-        pack(side == 0 ? own.hi[2] : own.lo[2] - 1, out);
-        in.assign(out.size(), 0.0);
-        MPI_Sendrecv(out.data(), static_cast<int>(out.size()), MPI_DOUBLE, to, 871 + side, in.data(),
-                     static_cast<int>(in.size()), MPI_DOUBLE, from, 871 + side, d.comm(), MPI_STATUS_IGNORE);
-        if (from != MPI_PROC_NULL) add(side == 0 ? own.lo[2] : own.hi[2] - 1, in);
-    }
-    const Box& al = f.allocated();
-    for (int k = al.lo[2]; k < al.hi[2]; ++k)
-        for (int j = al.lo[1]; j < al.hi[1]; ++j)
-            for (int i = al.lo[0]; i < al.hi[0]; ++i)
-                if (!own.contains(i, j, k))
-                    for (int c = 0; c < nc; ++c) f(i, j, k, c) = 0.0;
-}
-
 void sweep_map(const Decomposition& d, int face, const MapInputs& in, MapAccumulators& acc) {
     const Angular& ang = *in.angular;
     const int p = ang.p(), k2 = ang.k() * ang.k(), nm = ang.coarse_bins(), R = in.refinement;
@@ -591,9 +556,9 @@ void sweep_map(const Decomposition& d, int face, const MapInputs& in, MapAccumul
         }
     }
     if (!z_map) {
-        accumulate_ghosts_z(U, d);
-        accumulate_ghosts_z(*acc.fluence, d);
-        if (acc.flux) accumulate_ghosts_z(*acc.flux, d);
+        accumulate_halo(U, d, 2);
+        accumulate_halo(*acc.fluence, d, 2);
+        if (acc.flux) accumulate_halo(*acc.flux, d, 2);
     }
 }
 

@@ -64,8 +64,4 @@ struct MapAccumulators {
 // Collective. Sweeps map face f (0..5 = +X, -X, +Y, -Y, +Z, -Z) once.
 void sweep_map(const Decomposition& d, int face, const MapInputs& in, MapAccumulators& acc);
 
-// Collective. Adds the z ghost planes of f into the owners' boundary planes (the deposits a
-// rank made into its neighbours' cells), then zeroes every ghost value of f.
-void accumulate_ghosts_z(Field<double>& f, const Decomposition& d);
-
 }  // namespace nimbus::lpm

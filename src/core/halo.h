@@ -13,4 +13,11 @@ namespace nimbus {
 // Throws Error on every rank when a split axis has a rank box thinner than the ghost depth.
 void exchange_halo(Field<double>& f, const Decomposition& d);
 
+// The reverse of exchange_halo along one axis, for fields that receive deposits in their ghost
+// cells (LPM's maps): each ghost layer of f (one deep) is added into the adjacent rank's boundary
+// layer of owned cells, over the allocated extent of the other axes, then every ghost cell of f
+// is zeroed (deposits beyond the domain along `axis`, and along other axes, are dropped).
+// Collective over d.comm().
+void accumulate_halo(Field<double>& f, const Decomposition& d, int axis);
+
 }  // namespace nimbus

@@ -60,6 +60,32 @@ TEST(Halo, GhostsDeeperThanTheThinnestBoxAreRefused) {
     }
 }
 
+// accumulate_halo along z: what each rank deposited in its z ghost layers lands, added, in the
+// owners' boundary layers; ghosts outside the domain are dropped and every ghost ends at 0.
+TEST(Halo, AccumulateAddsGhostDepositsIntoTheOwners) {
+    const Int3 n{5, 4, 9};
+    const Decomposition d(MPI_COMM_WORLD, n, {1, 1, 0});
+    auto deposit = [](int q, int i, int j, int k) { return 1.0 + q + 0.01 * i + 1e-4 * j + 1e-6 * (k + 1); };
+    Field<double> f(d.local(), 1, 1, 0.0);
+    for_each_cell(d.local(), [&](int i, int j, int k) { f(i, j, k) = 7.0; });
+    const Box& own = d.local();
+    for (int k : {own.lo[2] - 1, own.hi[2]})
+        for (int j = own.lo[1] - 1; j <= own.hi[1]; ++j)
+            for (int i = own.lo[0] - 1; i <= own.hi[0]; ++i) f(i, j, k) = deposit(d.rank(), i, j, k);
+    accumulate_halo(f, d, 2);
+    for_each_cell(f.allocated(), [&](int i, int j, int k) {
+        double want = 0.0;
+        if (own.contains(i, j, k)) {
+            want = 7.0;
+            for (int q = 0; q < d.size(); ++q) {  // rank q's ghost layers just below and above its box
+                const Box b = d.box_of(q);
+                if (q != d.rank() && (k == b.lo[2] - 1 || k == b.hi[2])) want += deposit(q, i, j, k);
+            }
+        }
+        ASSERT_DOUBLE_EQ(f(i, j, k), want) << i << "," << j << "," << k;
+    });
+}
+
 // Deeper ghosts across ranks whose boxes are thick enough (12 layers: boxes of 3 or more on up
 // to 4 ranks), periodic z wrapping them.
 TEST(Halo, ThreeGhostLayersAcrossRanks) {
