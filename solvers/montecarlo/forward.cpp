@@ -77,6 +77,76 @@ double relative_standard_error(double s1, double s2, int K) {
     return m > 0 ? std::sqrt(var / K) / m : 0.0;
 }
 
+namespace {
+
+// Mean and standard error of K batch estimates from their sum s and sum of squares s2 (one
+// batch: no standard error, 0).
+void batch_mean_stderr(double s, double s2, int K, double& mean, double& se) {
+    const double k = std::max(1, K);
+    mean = s / k;
+    se = K > 1 ? std::sqrt(std::max(0.0, s2 / k - mean * mean) / (k - 1)) : 0.0;
+}
+
+// The per-cell sums of the replicated grid (this rank's share of the batches), reduced to the
+// owner of each cell: only cells with density (the others are never tallied; every rank knows
+// the replicated rho, `has_density`), packed by destination rank. `at(i, j, k)` is a cell's
+// index into the sums ([cell][band]); quantities per band and cell: sum, sumsq (and rsum,
+// rsumsq with the reduced tally). Fills res's per-band fields (mean and standard error of K
+// batches), halo-exchanged. Collective.
+template <class HasDensity, class At>
+void reduce_to_owners(const Decomposition& d, int nb, int K, HasDensity&& has_density, At&& at,
+                      const std::vector<double>& sum, const std::vector<double>& sumsq,
+                      const std::vector<double>* rsum, const std::vector<double>* rsumsq, ForwardResult& res) {
+    const int P = d.size(), nq = rsum ? 4 : 2;
+    std::vector<std::int64_t> recv_counts(static_cast<size_t>(P), 0);
+    for (int r = 0; r < P; ++r)
+        for_each_cell(d.box_of(r), [&](int i, int j, int k) {
+            if (has_density(i, j, k)) recv_counts[static_cast<size_t>(r)] += nb * nq;
+        });
+    std::vector<double> send;
+    send.reserve(static_cast<size_t>(std::accumulate(recv_counts.begin(), recv_counts.end(), std::int64_t{0})));
+    for (int r = 0; r < P; ++r)
+        for_each_cell(d.box_of(r), [&](int i, int j, int k) {
+            if (!has_density(i, j, k)) return;
+            const size_t c = static_cast<size_t>(at(i, j, k)) * nb;
+            for (int q = 0; q < nb; ++q) {
+                send.push_back(sum[c + q]);
+                send.push_back(sumsq[c + q]);
+                if (rsum) {
+                    send.push_back((*rsum)[c + q]);
+                    send.push_back((*rsumsq)[c + q]);
+                }
+            }
+        });
+    const std::vector<double> recv = reduce_scatter_sum(d.comm(), send, recv_counts);  // > 2^31: mpi_counts.h
+    for (int q = 0; q < nb; ++q) {
+        res.fluence.emplace_back(d.local(), 1, 1, 0.0);
+        res.fluence_stderr.emplace_back(d.local(), 1, 1, 0.0);
+        if (rsum) {
+            res.reduced.emplace_back(d.local(), 1, 1, 0.0);
+            res.reduced_stderr.emplace_back(d.local(), 1, 1, 0.0);
+        }
+    }
+    size_t pos = 0;
+    for_each_cell(d.local(), [&](int i, int j, int k) {
+        if (!has_density(i, j, k)) return;
+        for (int q = 0; q < nb; ++q) {
+            batch_mean_stderr(recv[pos], recv[pos + 1], K, res.fluence[static_cast<size_t>(q)](i, j, k),
+                              res.fluence_stderr[static_cast<size_t>(q)](i, j, k));
+            pos += 2;
+            if (rsum) {
+                batch_mean_stderr(recv[pos], recv[pos + 1], K, res.reduced[static_cast<size_t>(q)](i, j, k),
+                                  res.reduced_stderr[static_cast<size_t>(q)](i, j, k));
+                pos += 2;
+            }
+        }
+    });
+    for (auto* v : {&res.fluence, &res.fluence_stderr, &res.reduced, &res.reduced_stderr})
+        for (Field<double>& f : *v) exchange_halo(f, d);
+}
+
+}  // namespace
+
 StopEta eta_to_stop(const MonteCarloOptions& opt, int done, double trace_seconds, double elapsed,
                     double rel_error) {
     const double per_batch = trace_seconds / std::max(1, done);
@@ -133,7 +203,6 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     const int B = opt.batches;
     const double h = medium.grid.h;
     const std::vector<OpticsGroup> groups = group_by_optics(medium.bands);  // traced once per group
-    const int nq = settings.tally_reduced ? 4 : 2;  // per band: sum, sumsq (+ reduced sum, sumsq)
     for (const OpticsGroup& g : groups)
         if (g.bands.size() > 64) throw Error("Monte Carlo supports at most 64 bands with equal optics");
 
@@ -547,7 +616,6 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     // Counters: mean and standard error of the batch estimates.
     res.counters.assign(static_cast<size_t>(nb), Counters{});
     res.counters_stderr.assign(static_cast<size_t>(nb), Counters{});
-    const double K = std::max(1, done);
     for (int q = 0; q < nb; ++q)
         for (int c = 0; c < ncounters; ++c) {
             double m = 0.0, m2 = 0.0;
@@ -556,65 +624,13 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                 m += v;
                 m2 += v * v;
             }
-            m /= K;
-            res.counters[static_cast<size_t>(q)][c] = m;
-            res.counters_stderr[static_cast<size_t>(q)][c] =
-                done > 1 ? std::sqrt(std::max(0.0, m2 / K - m * m) / (K - 1)) : 0.0;
+            batch_mean_stderr(m, m2, done, res.counters[static_cast<size_t>(q)][c],
+                              res.counters_stderr[static_cast<size_t>(q)][c]);
         }
-
-    // Reduce the per-cell sums to the owners of each box: pack by destination rank, only the
-    // cells with density (the others are never tallied; every rank knows the replicated rho).
-    auto has_density = [&](int i, int j, int k) { return rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] > 0; };
-    std::vector<std::int64_t> recv_counts(static_cast<size_t>(P), 0);
-    for (int r = 0; r < P; ++r)
-        for_each_cell(d.box_of(r), [&](int i, int j, int k) {
-            if (has_density(i, j, k)) recv_counts[static_cast<size_t>(r)] += nb * nq;
-        });
-    std::vector<double> send;
-    send.reserve(static_cast<size_t>(std::accumulate(recv_counts.begin(), recv_counts.end(), std::int64_t{0})));
-    for (int r = 0; r < P; ++r)
-        for_each_cell(d.box_of(r), [&](int i, int j, int k) {
-            if (!has_density(i, j, k)) return;
-            const size_t c = static_cast<size_t>(box_index(i, j, k)) * nb;
-            for (int q = 0; q < nb; ++q) {
-                send.push_back(sum[c + q]);
-                send.push_back(sumsq[c + q]);
-                if (settings.tally_reduced) {
-                    send.push_back(rsum[c + q]);
-                    send.push_back(rsumsq[c + q]);
-                }
-            }
-        });
-    const std::vector<double> recv = reduce_scatter_sum(d.comm(), send, recv_counts);  // > 2^31: mpi_counts.h
-
-    auto mean_and_stderr = [&](double s, double s2, double& mean, double& se) {
-        mean = s / K;
-        se = done > 1 ? std::sqrt(std::max(0.0, s2 / K - mean * mean) / (K - 1)) : 0.0;
-    };
-    for (int q = 0; q < nb; ++q) {
-        res.fluence.emplace_back(d.local(), 1, 1, 0.0);
-        res.fluence_stderr.emplace_back(d.local(), 1, 1, 0.0);
-        if (settings.tally_reduced) {
-            res.reduced.emplace_back(d.local(), 1, 1, 0.0);
-            res.reduced_stderr.emplace_back(d.local(), 1, 1, 0.0);
-        }
-    }
-    size_t pos = 0;
-    for_each_cell(d.local(), [&](int i, int j, int k) {
-        if (!has_density(i, j, k)) return;
-        for (int q = 0; q < nb; ++q) {
-            mean_and_stderr(recv[pos], recv[pos + 1], res.fluence[static_cast<size_t>(q)](i, j, k),
-                            res.fluence_stderr[static_cast<size_t>(q)](i, j, k));
-            pos += 2;
-            if (settings.tally_reduced) {
-                mean_and_stderr(recv[pos], recv[pos + 1], res.reduced[static_cast<size_t>(q)](i, j, k),
-                                res.reduced_stderr[static_cast<size_t>(q)](i, j, k));
-                pos += 2;
-            }
-        }
-    });
-    for (auto* v : {&res.fluence, &res.fluence_stderr, &res.reduced, &res.reduced_stderr})
-        for (Field<double>& f : *v) exchange_halo(f, d);
+    reduce_to_owners(
+        d, nb, done, [&](int i, int j, int k) { return rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] > 0; },
+        box_index, sum, sumsq, settings.tally_reduced ? &rsum : nullptr, settings.tally_reduced ? &rsumsq : nullptr,
+        res);
     // Phase times, the maximum over the ranks (so that every rank reports the same values).
     const double t_end = wall_time();
     double times[4] = {t_end - t_start, t_setup - t_start, t_traced - t_setup, t_end - t_traced}, tmax[4];
