@@ -70,13 +70,6 @@ std::vector<std::int64_t> photons_per_light(const std::vector<double>& power, st
     return n;
 }
 
-double relative_standard_error(double s1, double s2, int K) {
-    if (K < 2) return 0.0;
-    const double m = s1 / K;
-    const double var = std::max(0.0, s2 / K - m * m) * K / (K - 1);  // unbiased sample variance
-    return m > 0 ? std::sqrt(var / K) / m : 0.0;
-}
-
 namespace {
 
 // Mean and standard error of K batch estimates from their sum s and sum of squares s2 (one
@@ -146,6 +139,12 @@ void reduce_to_owners(const Decomposition& d, int nb, int K, HasDensity&& has_de
 }
 
 }  // namespace
+
+double relative_standard_error(double s1, double s2, int K) {
+    double mean = 0.0, se = 0.0;
+    batch_mean_stderr(s1, s2, K, mean, se);
+    return mean > 0 ? se / mean : 0.0;
+}
 
 StopEta eta_to_stop(const MonteCarloOptions& opt, int done, double trace_seconds, double elapsed,
                     double rel_error) {
