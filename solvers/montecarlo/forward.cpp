@@ -615,16 +615,19 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     // Counters: mean and standard error of the batch estimates.
     res.counters.assign(static_cast<size_t>(nb), Counters{});
     res.counters_stderr.assign(static_cast<size_t>(nb), Counters{});
+    // Two passes over the kept batches' values (all stored): sum((v - mean)²) has no cancellation,
+    // unlike sum(v²)/K - mean², which turned round-off of the sums' order (a budget run's chunks)
+    // into 1e-11 differences of the standard error.
     for (int q = 0; q < nb; ++q)
         for (int c = 0; c < ncounters; ++c) {
-            double m = 0.0, m2 = 0.0;
-            for (int b = 0; b < done; ++b) {
-                const double v = all_counters[static_cast<size_t>(b) * nb + q][c];
-                m += v;
-                m2 += v * v;
-            }
-            batch_mean_stderr(m, m2, done, res.counters[static_cast<size_t>(q)][c],
-                              res.counters_stderr[static_cast<size_t>(q)][c]);
+            const auto value = [&](int b) { return all_counters[static_cast<size_t>(b) * nb + q][c]; };
+            double m = 0.0, ss = 0.0;
+            for (int b = 0; b < done; ++b) m += value(b);
+            m /= std::max(1, done);
+            for (int b = 0; b < done; ++b) ss += (value(b) - m) * (value(b) - m);
+            res.counters[static_cast<size_t>(q)][c] = m;
+            res.counters_stderr[static_cast<size_t>(q)][c] =
+                done > 1 ? std::sqrt(ss / (static_cast<double>(done) * (done - 1))) : 0.0;
         }
     reduce_to_owners(
         d, nb, done, [&](int i, int j, int k) { return rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] > 0; },
