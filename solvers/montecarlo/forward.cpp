@@ -9,11 +9,8 @@
 #include <numeric>
 #include <utility>
 
-#include "solvers/montecarlo/emitter.h"
-#include "src/core/empty_space.h"
-#include "src/core/grid_walk.h"
-#include "solvers/montecarlo/photon.h"
-#include "solvers/montecarlo/trace_light.h"
+#include "solvers/montecarlo/batch_in_flight.h"
+#include "solvers/montecarlo/replicated_problem.h"
 #include "src/core/error.h"
 #include "src/core/gather.h"
 #include "src/core/halo.h"
@@ -138,6 +135,26 @@ void reduce_to_owners(const Decomposition& d, int nb, int K, HasDensity&& has_de
         for (Field<double>& f : *v) exchange_halo(f, d);
 }
 
+// Mean and standard error per band and counter of the K kept batches' counters (all_counters:
+// [batch][band]). Two passes over the stored values: sum((v - mean)²) has no cancellation,
+// unlike sum(v²)/K - mean², which turned round-off of the sums' order (a budget run's chunks)
+// into 1e-11 differences of the standard error.
+void counter_statistics(const std::vector<Counters>& all_counters, int nb, int K, ForwardResult& res) {
+    res.counters.assign(static_cast<size_t>(nb), Counters{});
+    res.counters_stderr.assign(static_cast<size_t>(nb), Counters{});
+    for (int q = 0; q < nb; ++q)
+        for (int c = 0; c < ncounters; ++c) {
+            const auto value = [&](int b) { return all_counters[static_cast<size_t>(b) * nb + q][c]; };
+            double m = 0.0, ss = 0.0;
+            for (int b = 0; b < K; ++b) m += value(b);
+            m /= std::max(1, K);
+            for (int b = 0; b < K; ++b) ss += (value(b) - m) * (value(b) - m);
+            res.counters[static_cast<size_t>(q)][c] = m;
+            res.counters_stderr[static_cast<size_t>(q)][c] =
+                K > 1 ? std::sqrt(ss / (static_cast<double>(K) * (K - 1))) : 0.0;
+        }
+}
+
 }  // namespace
 
 double relative_standard_error(double s1, double s2, int K) {
@@ -196,248 +213,21 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                             const MonteCarloOptions& opt, const ForwardSettings& settings) {
     opt.validate();
     const double t_start = wall_time();
-    const Int3 n = d.global().hi;
-    const std::int64_t cells = d.global().cells();
     const int nb = medium.nbands();
-    const int B = opt.batches;
-    const double h = medium.grid.h;
-    const std::vector<OpticsGroup> groups = group_by_optics(medium.bands);  // traced once per group
-    for (const OpticsGroup& g : groups)
-        if (g.bands.size() > 64) throw Error("Monte Carlo supports at most 64 bands with equal optics");
-
-    // Memory of the replicated arrays, per rank (replicated_bytes, forward.h).
-    double source_cells = 0.0;
-    for (const VolumeSource& src : sources) source_cells += static_cast<double>(src.cells.cells());
-    const double bytes = replicated_bytes(static_cast<double>(cells), static_cast<int>(groups.size()), nb,
-                                          settings.tally_reduced, source_cells);
+    ReplicatedProblem problem = replicate_problem(d, medium, lights, sources, opt, settings);
     ForwardResult res;
-    res.replicated_gb = bytes / 1e9;
-    check_replicated_memory(n, bytes, opt);
-
-    const std::vector<double> rho = allgather_global(medium.rho, d);
-    std::array<bool, 3> periodic{d.periodic(0), d.periodic(1), d.periodic(2)};
-
-    // Bounding box of the non-empty cells (the whole extent along periodic axes).
-    Int3 box_lo = n, box_hi{0, 0, 0};
-    for_each_cell(d.global(), [&](int i, int j, int k) {
-        if (rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] > 0) {
-            const Int3 c{i, j, k};
-            for (int a = 0; a < 3; ++a) box_lo[a] = std::min(box_lo[a], c[a]), box_hi[a] = std::max(box_hi[a], c[a] + 1);
-        }
-    });
-    for (int a = 0; a < 3; ++a)
-        if (periodic[a] || box_hi[a] <= box_lo[a]) box_lo[a] = 0, box_hi[a] = periodic[a] ? n[a] : 0;
-
-    // The walk's grid covers only the box (outside it all is empty), padded by one ghost
-    // layer (grid_walk.h); the per-cell arrays below use the walk's cell indices.
-    Int3 box_n;
-    for (int a = 0; a < 3; ++a) box_n[a] = std::max(box_hi[a] - box_lo[a], 1);
-    const GridView padded{box_n, periodic, nullptr};
-    const std::int64_t pcells = static_cast<std::int64_t>(box_n[0] + 2) * (box_n[1] + 2) * (box_n[2] + 2);
-    auto box_index = [&](int i, int j, int k) { return padded.index({i - box_lo[0], j - box_lo[1], k - box_lo[2]}); };
-
-    // Light terms: entry faces, projected area (m²) of the domain and of the box's live pixels
-    // (photon.h: rays through the rest meet only empty cells), photon counts.
-    std::vector<EntrySampler> entry;
-    std::vector<double> area, domain_area, power;
-    const std::vector<Int3> surface = surface_cells(
-        {box_hi[0] - box_lo[0], box_hi[1] - box_lo[1], box_hi[2] - box_lo[2]}, periodic, [&](const Int3& c) {
-            return rho[(static_cast<size_t>(c[2] + box_lo[2]) * n[1] + (c[1] + box_lo[1])) * n[0] + (c[0] + box_lo[0])] > 0;
-        });
-    for (const DirectionalLight& L : lights) {
-        domain_area.push_back(EntrySampler({0, 0, 0}, n, periodic, L.w).projected_area * h * h);
-        entry.emplace_back(box_lo, box_hi, periodic, L.w);
-        entry.back().restrict_to(surface, periodic, L.w);
-        area.push_back(entry.back().projected_area * h * h);
-        double p = 0.0;
-        for (int b = 0; b < nb; ++b) p += L.E0[static_cast<size_t>(b)] * area.back();
-        power.push_back(p);
-    }
-    // Volume sources: the emitting cells of each, then its power, after the lights' (one
-    // budget, photons_per_light).
-    std::vector<VolumeEmitter> emitters;
-    for (const VolumeSource& src : sources) {
-        emitters.emplace_back(src.power, src.cells, [&](int i, int j, int k) {
-            return rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i];
-        }, h);
-        double p = 0.0;
-        for (int b = 0; b < nb; ++b) p += emitters.back().total_power(b);
-        power.push_back(p);
-    }
-    // A power that overflows (e.g. irradiance x area beyond 1.8e308 W) would make every share
-    // NaN; every rank has the same powers, so every rank throws alike.
-    for (size_t t = 0; t < power.size(); ++t)
-        if (!std::isfinite(power[t]))
-            throw Error(fmt::format("montecarlo: the power of {} is not finite ({} W summed over bands): the "
-                                    "irradiance, radiance or source power times the area or volume overflows; "
-                                    "use smaller values or units",
-                                    t < lights.size() ? fmt::format("light term {} ('{}')", t, lights[t].name)
-                                                      : fmt::format("sources[{}]", t - lights.size()),
-                                    power[t]));
-    const std::vector<std::int64_t> n_light = photons_per_light(power, opt.photons, B);
-    const std::int64_t n_total = std::accumulate(n_light.begin(), n_light.end(), std::int64_t{0});
-    if (n_total > opt.photons)
-        log::warn("montecarlo: {} photons asked for, {} traced: every lit term takes at least one photon per "
-                  "batch ({} terms, {} batches)",
-                  opt.photons, n_total, std::count_if(power.begin(), power.end(), [](double p) { return p > 0; }), B);
-    const size_t nl = lights.size(), nt = nl + emitters.size();  // light terms, all terms
-
-    // Per-rank accumulators over the global grid: [cell][band] sum and sum of squares of the
-    // batch estimates (and of the reduced tally).
-    std::vector<double> sum(static_cast<size_t>(pcells * nb), 0.0), sumsq(sum.size(), 0.0);
-    std::vector<double> rsum, rsumsq;
-    if (settings.tally_reduced) rsum.assign(sum.size(), 0.0), rsumsq.assign(sum.size(), 0.0);
-    std::int64_t my_photons = 0, my_collisions = 0, my_segments = 0;  // of the batches kept
-
-    std::vector<VoxelGrid> voxels(groups.size());
-    {
-        std::vector<float> kappa(static_cast<size_t>(box_n[0]) * box_n[1] * box_n[2], 0.0f);
-        for (size_t gi = 0; gi < groups.size(); ++gi) {
-            for (int k = box_lo[2]; k < box_hi[2]; ++k)
-                for (int j = box_lo[1]; j < box_hi[1]; ++j)
-                    for (int i = box_lo[0]; i < box_hi[0]; ++i)
-                        kappa[(static_cast<size_t>(k - box_lo[2]) * box_n[1] + (j - box_lo[1])) * box_n[0] + (i - box_lo[0])] =
-                            static_cast<float>(rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] * groups[gi].optics.sigma_t * h);
-            voxels[gi] = make_voxels(box_n, kappa);
-            voxels[gi].origin = box_lo;
-            voxels[gi].domain = n;
-        }
-    }
-    // The tally of the batch in flight, [cell][band], reused across batches: only the cells a
-    // batch touched are folded into the sums (or zeroed, for a batch the time budget cut), so a
-    // batch costs O(cells touched), not O(grid). A cell is listed when its tally of the light's
-    // strongest band is still 0 (every tallied segment adds a positive amount there; a repeated
-    // entry folds 0, harmlessly).
-    std::vector<double> tally(static_cast<size_t>(pcells) * nb, 0.0), rtally, reduced_acc;
-    if (settings.tally_reduced) rtally.assign(tally.size(), 0.0), reduced_acc.assign(static_cast<size_t>(pcells), 0.0);
-    std::vector<std::int64_t> touched, light_touched;  // cells tallied in this batch / by this light
-    light_touched.reserve(static_cast<size_t>(std::min<std::int64_t>(cells, 1 << 20)));
-    touched.reserve(static_cast<size_t>(std::min<std::int64_t>(cells, 1 << 20)));
-    // The rest of the batch in flight: its energy counters per band and its photon, collision
-    // and segment counts, kept apart until the round knows whether the batch is kept.
-    std::vector<Counters> flight(static_cast<size_t>(nb), Counters{});
-    std::int64_t flight_photons = 0, flight_collisions = 0, flight_segments = 0;
+    res.replicated_gb = problem.replicated_gb;
+    KeptBatches kept_sums(problem, settings.tally_reduced);
+    BatchInFlight flight(problem, opt, settings);
     const double t_setup = wall_time();
 
     // The batch layout: batch b of term l is [b n_l / layout, (b+1) n_l / layout); layout is
     // opt.batches unless the time budget's pilot split the batches (batch_split), at most so far
     // that every batch keeps a photon of every term.
-    int layout = B;
+    int layout = opt.batches;
     std::int64_t max_layout = std::int64_t{1} << 30;
-    for (const std::int64_t nl_photons : n_light)
+    for (const std::int64_t nl_photons : problem.n_light)
         if (nl_photons > 0) max_layout = std::min(max_layout, nl_photons);
-
-    // Traces part [k0, k1) of the kChunkSteps steps of `batch` (of every term the photons
-    // [lo + (hi - lo) k0 / S, lo + (hi - lo) k1 / S); k0 = 0, k1 = S is the whole batch) into the
-    // batch in flight.
-    auto trace_chunk = [&](int batch, std::int64_t k0, std::int64_t k1, std::int64_t steps) {
-        auto offset = [steps](std::int64_t count, std::int64_t k) {  // count k / steps, exactly
-            return count / steps * k + count % steps * k / steps;
-        };
-        for (size_t gi = 0; gi < groups.size(); ++gi) {
-            const OpticsGroup& G = groups[gi];
-            const int nbg = static_cast<int>(G.bands.size());
-            const int* band = G.bands.data();
-            const GridView grid = voxels[gi].view(periodic);
-            const PhotonOptics po{G.optics.albedo, G.optics.g, opt.roulette_weight};
-            for (size_t l = 0; l < nt; ++l) {
-                if (n_light[l] == 0) continue;
-                const VolumeEmitter* emitter = l < nl ? nullptr : &emitters[l - nl];
-                const std::int64_t lo = batch * n_light[l] / layout,
-                                   hi = (batch + 1) * n_light[l] / layout;
-                if (hi <= lo) continue;
-                const std::int64_t from = lo + offset(hi - lo, k0), to = lo + offset(hi - lo, k1);
-                // Photon power per band (W) in this batch's estimate, and the fluence scale
-                // P len(m) / V = P len(cells) / h².
-                double P[64]{}, scale[64]{};
-                int strongest = 0;
-                for (int q = 0; q < nbg; ++q) {
-                    P[q] = (emitter ? emitter->total_power(band[q])
-                                    : lights[l].E0[static_cast<size_t>(band[q])] * area[l]) /
-                           static_cast<double>(hi - lo);
-                    scale[q] = P[q] / (h * h);
-                    if (scale[q] > scale[strongest]) strongest = q;
-                }
-                if (!(scale[strongest] > 0)) {  // no power in this group's bands (nothing to tally)
-                    if (gi == 0) flight_photons += to - from;
-                    continue;
-                }
-                if (k0 == 0)  // once per batch: the term's power, and the rays that miss the box
-                    for (int q = 0; q < nbg; ++q) {
-                        Counters& c = flight[static_cast<size_t>(band[q])];
-                        if (emitter) {
-                            c[emitted] += emitter->total_power(band[q]);
-                        } else {
-                            const double E0 = lights[l].E0[static_cast<size_t>(band[q])];
-                            c[incident] += E0 * domain_area[l];
-                            c[escaped_direct] += E0 * (domain_area[l] - area[l]);
-                        }
-                    }
-                if (to <= from) continue;
-                // Trace (trace_light.h: w len accumulated per voxel), then fold the light's
-                // accumulators into the per-band batch tally (x P/h² per band) and zero them.
-                PathTally pt;
-                light_touched.clear();
-                const LightTerm term{emitter ? nullptr : &entry[l], emitter ? Vec3{0, 0, -1} : lights[l].w, emitter,
-                                     static_cast<std::uint32_t>(l)};
-                trace_photons(grid, po, term, opt.seed, from, to, settings.forced_first_collision,
-                              settings.tally_reduced ? reduced_acc.data() : nullptr, light_touched,
-                              pt);
-                auto fold = [&](std::vector<double>& to_tally, std::int64_t idx, double track) {
-                    double* c = to_tally.data() + idx * nb;
-                    if (c[band[strongest]] == 0.0) touched.push_back(idx);
-                    for (int q = 0; q < nbg; ++q) c[band[q]] += track * scale[q];
-                };
-                double diffuse_track = 0.0;  // sum of w len (cells) after the first scattering
-                for (const std::int64_t idx : light_touched) {
-                    const double v = std::exchange(grid.voxel[idx].tally, 0.0);
-                    diffuse_track += v;
-                    if (v != 0.0) fold(tally, idx, v);
-                    if (settings.tally_reduced) {
-                        const double r = std::exchange(reduced_acc[static_cast<size_t>(idx)], 0.0);
-                        if (r != 0.0) fold(rtally, idx, r);
-                    }
-                }
-                if (gi == 0) flight_photons += to - from;  // a photon traced once per optics group
-                flight_collisions += pt.collisions;
-                flight_segments += pt.segments;
-                for (int q = 0; q < nbg; ++q) {
-                    Counters& c = flight[static_cast<size_t>(band[q])];
-                    c[absorbed] += P[q] * pt.absorbed;
-                    c[escaped_direct] += P[q] * pt.escaped_direct;
-                    for (int f = 0; f < 6; ++f) c[escaped_xlo + f] += P[q] * pt.escaped_diffuse[f];
-                    c[roulette_net] += P[q] * pt.roulette_net;
-                    c[diffuse_volume] += P[q] * diffuse_track * h;
-                }
-            }
-        }
-    };
-    // Ends the batch in flight: folds it into the sums and counts (keep) or drops it.
-    auto end_batch = [&](bool keep) {
-        auto fold = [&](std::vector<double>& from, std::vector<double>& s1, std::vector<double>& s2,
-                        std::int64_t c) {
-            double* v = from.data() + c * nb;
-            for (int q = 0; q < nb; ++q) {
-                if (keep) {
-                    s1[static_cast<size_t>(c * nb + q)] += v[q];
-                    s2[static_cast<size_t>(c * nb + q)] += v[q] * v[q];
-                }
-                v[q] = 0.0;
-            }
-        };
-        for (const std::int64_t c : touched) {
-            fold(tally, sum, sumsq, c);
-            if (settings.tally_reduced) fold(rtally, rsum, rsumsq, c);
-        }
-        touched.clear();
-        if (keep) {
-            my_photons += flight_photons;
-            my_collisions += flight_collisions;
-            my_segments += flight_segments;
-        }
-        flight_photons = flight_collisions = flight_segments = 0;
-        std::fill(flight.begin(), flight.end(), Counters{});
-    };
 
     // Rounds: each rank traces one batch (ranks past the last batch idle). Without a time budget
     // a batch is traced in one piece. With one, in chunks of about chunk_seconds, and a rank
@@ -449,7 +239,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     // whether the target error is reached and broadcasts it.
     const int P = d.size();
     const bool budget = opt.time_budget > 0;
-    const bool any_light = std::any_of(n_light.begin(), n_light.end(), [](std::int64_t v) { return v > 0; });
+    const bool any_light = std::any_of(problem.n_light.begin(), problem.n_light.end(), [](std::int64_t v) { return v > 0; });
     const std::int64_t steps = budget ? kChunkSteps : 1;
     const double chunk_seconds = std::min(kChunkSeconds, opt.time_budget / 50.0);
     const double pilot_seconds = std::min(kPilotSeconds, opt.time_budget / 32.0);
@@ -491,7 +281,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
         while (batch >= 0 && k < steps) {
             const std::int64_t k1 = std::min(steps, k + (budget ? dk : steps));
             const double t0 = wall_time();
-            trace_chunk(batch, k, k1, steps);
+            flight.trace(batch, layout, k, k1, steps);
             k = k1;
             if (!budget) continue;
             const double now = wall_time();
@@ -509,7 +299,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
             split = pilot(batch >= 0 ? static_cast<double>(k) / static_cast<double>(steps) : 0.0,
                           wall_time() - t_round);
         if (split > 1) {
-            end_batch(false);
+            flight.end(false, kept_sums);
             log::info(
                 "montecarlo: a batch of {} photons would take {:.2f} s of the {:.2f} s time "
                 "budget: {} batches of {} photons instead",
@@ -531,7 +321,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
         if (batch >= 0) {
             for (int q = 0; q < nb; ++q)
                 std::copy_n(
-                    flight[static_cast<size_t>(q)].begin(), ncounters,
+                    flight.counters()[static_cast<size_t>(q)].begin(), ncounters,
                     counters_of + static_cast<size_t>(batch - done) * per_batch + q * ncounters);
             complete[batch - done] = k == steps ? 1.0 : 0.0;
         }
@@ -563,7 +353,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
         }
         MPI_Bcast(&target_kept, 1, MPI_INT, 0, d.comm());
         if (target_kept > 0) kept = target_kept;
-        if (batch >= 0) end_batch(batch < done + kept);
+        if (batch >= 0) flight.end(batch < done + kept, kept_sums);
         for (int b = 0; b < kept; ++b) {
             for (int q = 0; q < nb; ++q) {
                 Counters c;
@@ -606,32 +396,17 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     const double t_traced = wall_time();
     res.batches = done;
     res.layout_batches = layout;
-    std::int64_t counts[3] = {my_photons, my_collisions, my_segments}, total[3] = {0, 0, 0};
+    std::int64_t counts[3] = {kept_sums.photons, kept_sums.collisions, kept_sums.segments}, total[3] = {0, 0, 0};
     MPI_Allreduce(counts, total, 3, MPI_INT64_T, MPI_SUM, d.comm());
     res.photons = total[0];
     res.collisions = total[1];
     res.segments = total[2];
 
-    // Counters: mean and standard error of the batch estimates.
-    res.counters.assign(static_cast<size_t>(nb), Counters{});
-    res.counters_stderr.assign(static_cast<size_t>(nb), Counters{});
-    // Two passes over the kept batches' values (all stored): sum((v - mean)²) has no cancellation,
-    // unlike sum(v²)/K - mean², which turned round-off of the sums' order (a budget run's chunks)
-    // into 1e-11 differences of the standard error.
-    for (int q = 0; q < nb; ++q)
-        for (int c = 0; c < ncounters; ++c) {
-            const auto value = [&](int b) { return all_counters[static_cast<size_t>(b) * nb + q][c]; };
-            double m = 0.0, ss = 0.0;
-            for (int b = 0; b < done; ++b) m += value(b);
-            m /= std::max(1, done);
-            for (int b = 0; b < done; ++b) ss += (value(b) - m) * (value(b) - m);
-            res.counters[static_cast<size_t>(q)][c] = m;
-            res.counters_stderr[static_cast<size_t>(q)][c] =
-                done > 1 ? std::sqrt(ss / (static_cast<double>(done) * (done - 1))) : 0.0;
-        }
+    counter_statistics(all_counters, nb, done, res);
     reduce_to_owners(
-        d, nb, done, [&](int i, int j, int k) { return rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] > 0; },
-        box_index, sum, sumsq, settings.tally_reduced ? &rsum : nullptr, settings.tally_reduced ? &rsumsq : nullptr,
+        d, nb, done, [&](int i, int j, int k) { return problem.has_density(i, j, k); },
+        [&](int i, int j, int k) { return problem.box_index(i, j, k); }, kept_sums.sum, kept_sums.sumsq,
+        settings.tally_reduced ? &kept_sums.rsum : nullptr, settings.tally_reduced ? &kept_sums.rsumsq : nullptr,
         res);
     // Phase times, the maximum over the ranks (so that every rank reports the same values).
     const double t_end = wall_time();

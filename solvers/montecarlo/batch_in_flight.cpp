@@ -1,0 +1,156 @@
+#include "solvers/montecarlo/batch_in_flight.h"
+
+#include <algorithm>
+#include <utility>
+
+#include "solvers/montecarlo/trace_light.h"
+
+namespace nimbus::mc {
+
+namespace {
+
+// A touched-cell list longer than 1/kScanFraction of the padded grid is visited by scanning the
+// grid: a scan costs ~1 ns a cell, a list entry a cache miss.
+constexpr std::int64_t kScanFraction = 8;
+
+}  // namespace
+
+KeptBatches::KeptBatches(const ReplicatedProblem& p, bool tally_reduced)
+    : sum(static_cast<size_t>(p.padded_cells * p.nb), 0.0), sumsq(sum.size(), 0.0) {
+    if (tally_reduced) rsum.assign(sum.size(), 0.0), rsumsq.assign(sum.size(), 0.0);
+}
+
+BatchInFlight::BatchInFlight(ReplicatedProblem& p, const MonteCarloOptions& opt, const ForwardSettings& settings)
+    : p_(p), opt_(opt), settings_(settings),
+      tally_(static_cast<size_t>(p.padded_cells) * p.nb, 0.0),
+      counters_(static_cast<size_t>(p.nb), Counters{}) {
+    if (settings.tally_reduced)
+        rtally_.assign(tally_.size(), 0.0), reduced_acc_.assign(static_cast<size_t>(p.padded_cells), 0.0);
+    const auto cells = static_cast<size_t>(std::min<std::int64_t>(p.padded_cells, 1 << 20));
+    light_touched_.reserve(cells);
+    touched_.reserve(cells);
+}
+
+template <class Visit>
+void BatchInFlight::for_each_listed(const std::vector<std::int64_t>& list, Visit&& visit) const {
+    if (static_cast<std::int64_t>(list.size()) * kScanFraction < p_.padded_cells) {
+        for (const std::int64_t idx : list) visit(idx);
+    } else {  // every cell once; the unlisted ones fold zeros, which changes no sum
+        for (std::int64_t idx = 0; idx < p_.padded_cells; ++idx) visit(idx);
+    }
+}
+
+void BatchInFlight::trace(int batch, int layout, std::int64_t k0, std::int64_t k1, std::int64_t steps) {
+    auto offset = [steps](std::int64_t count, std::int64_t k) {  // count k / steps, exactly
+        return count / steps * k + count % steps * k / steps;
+    };
+    const int nb = p_.nb;
+    const double h = p_.h;
+    const size_t nl = p_.light_terms();
+    for (size_t gi = 0; gi < p_.groups.size(); ++gi) {
+        const OpticsGroup& G = p_.groups[gi];
+        const int nbg = static_cast<int>(G.bands.size());
+        const int* band = G.bands.data();
+        const GridView grid = p_.voxels[gi].view(p_.periodic);
+        const PhotonOptics po{G.optics.albedo, G.optics.g, opt_.roulette_weight};
+        for (size_t l = 0; l < p_.terms(); ++l) {
+            const std::int64_t N = p_.n_light[l];
+            if (N == 0) continue;
+            const VolumeEmitter* emitter = l < nl ? nullptr : &p_.emitters[l - nl];
+            const std::int64_t lo = batch * N / layout, hi = (batch + 1) * N / layout;
+            if (hi <= lo) continue;
+            const std::int64_t from = lo + offset(hi - lo, k0), to = lo + offset(hi - lo, k1);
+            // Photon power per band (W) in this batch's estimate, and the fluence scale
+            // P len(m) / V = P len(cells) / h².
+            double P[64]{}, scale[64]{};
+            int strongest = 0;
+            for (int q = 0; q < nbg; ++q) {
+                P[q] = (emitter ? emitter->total_power(band[q])
+                                : p_.lights[l].E0[static_cast<size_t>(band[q])] * p_.area[l]) /
+                       static_cast<double>(hi - lo);
+                scale[q] = P[q] / (h * h);
+                if (scale[q] > scale[strongest]) strongest = q;
+            }
+            if (!(scale[strongest] > 0)) {  // no power in this group's bands (nothing to tally)
+                if (gi == 0) photons_ += to - from;
+                continue;
+            }
+            if (k0 == 0)  // once per batch: the term's power, and the rays that miss the box
+                for (int q = 0; q < nbg; ++q) {
+                    Counters& c = counters_[static_cast<size_t>(band[q])];
+                    if (emitter) {
+                        c[emitted] += emitter->total_power(band[q]);
+                    } else {
+                        const double E0 = p_.lights[l].E0[static_cast<size_t>(band[q])];
+                        c[incident] += E0 * p_.domain_area[l];
+                        c[escaped_direct] += E0 * (p_.domain_area[l] - p_.area[l]);
+                    }
+                }
+            if (to <= from) continue;
+            // Trace (w len accumulated per voxel), then fold the term's accumulators into the
+            // per-band batch tally (x P/h² per band) and zero them. A cell is listed in touched_
+            // when its tally of the term's strongest band is still 0 (every tallied segment adds
+            // a positive amount there; a repeated entry folds 0, harmlessly).
+            PathTally pt;
+            light_touched_.clear();
+            const LightTerm term{emitter ? nullptr : &p_.entry[l], emitter ? Vec3{0, 0, -1} : p_.lights[l].w, emitter,
+                                 static_cast<std::uint32_t>(l)};
+            trace_photons(grid, po, term, opt_.seed, from, to, settings_.forced_first_collision,
+                          settings_.tally_reduced ? reduced_acc_.data() : nullptr, light_touched_, pt);
+            auto fold = [&](std::vector<double>& to_tally, std::int64_t idx, double track) {
+                double* c = to_tally.data() + idx * nb;
+                if (c[band[strongest]] == 0.0) touched_.push_back(idx);
+                for (int q = 0; q < nbg; ++q) c[band[q]] += track * scale[q];
+            };
+            double diffuse_track = 0.0;  // sum of w len (cells) after the first scattering
+            for_each_listed(light_touched_, [&](std::int64_t idx) {
+                const double v = std::exchange(grid.voxel[idx].tally, 0.0);
+                diffuse_track += v;
+                if (v != 0.0) fold(tally_, idx, v);
+                if (settings_.tally_reduced) {
+                    const double r = std::exchange(reduced_acc_[static_cast<size_t>(idx)], 0.0);
+                    if (r != 0.0) fold(rtally_, idx, r);
+                }
+            });
+            if (gi == 0) photons_ += to - from;  // a photon traced once per optics group
+            collisions_ += pt.collisions;
+            segments_ += pt.segments;
+            for (int q = 0; q < nbg; ++q) {
+                Counters& c = counters_[static_cast<size_t>(band[q])];
+                c[absorbed] += P[q] * pt.absorbed;
+                c[escaped_direct] += P[q] * pt.escaped_direct;
+                for (int f = 0; f < 6; ++f) c[escaped_xlo + f] += P[q] * pt.escaped_diffuse[f];
+                c[roulette_net] += P[q] * pt.roulette_net;
+                c[diffuse_volume] += P[q] * diffuse_track * h;
+            }
+        }
+    }
+}
+
+void BatchInFlight::end(bool keep, KeptBatches& kept) {
+    const int nb = p_.nb;
+    auto fold = [&](std::vector<double>& from, std::vector<double>& s1, std::vector<double>& s2, std::int64_t c) {
+        double* v = from.data() + c * nb;
+        for (int q = 0; q < nb; ++q) {
+            if (keep) {
+                s1[static_cast<size_t>(c * nb + q)] += v[q];
+                s2[static_cast<size_t>(c * nb + q)] += v[q] * v[q];
+            }
+            v[q] = 0.0;
+        }
+    };
+    for_each_listed(touched_, [&](std::int64_t c) {
+        fold(tally_, kept.sum, kept.sumsq, c);
+        if (settings_.tally_reduced) fold(rtally_, kept.rsum, kept.rsumsq, c);
+    });
+    touched_.clear();
+    if (keep) {
+        kept.photons += photons_;
+        kept.collisions += collisions_;
+        kept.segments += segments_;
+    }
+    photons_ = collisions_ = segments_ = 0;
+    std::fill(counters_.begin(), counters_.end(), Counters{});
+}
+
+}  // namespace nimbus::mc

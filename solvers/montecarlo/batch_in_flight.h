@@ -1,0 +1,65 @@
+// The batch a rank is tracing in the forward Monte Carlo model (forward.h): its per-band cell
+// tallies, energy counters and photon/collision/segment counts, kept apart until the round
+// decides whether the batch is kept (folded into KeptBatches) or dropped (a batch the time
+// budget cut). Not collective; one per rank.
+//
+// Tallies cost O(cells touched), not O(grid): trace_photons (trace_light.h) lists the voxels
+// whose accumulator it lit; after each light term they are folded into the per-band batch
+// tally (x P/h² per band) and zeroed, and the cells of the batch tally are listed again for
+// end(). A list longer than 1/8 of the padded grid is visited by scanning the grid instead,
+// which streams through memory where the list's scattered entries miss the cache; each cell's
+// fold is independent of the others', so both give bit-identical tallies (only the term's total
+// track, summed over the cells for the diffuse_volume counter, is summed in the visiting order
+// and may differ in its last bits).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "solvers/montecarlo/forward.h"
+#include "solvers/montecarlo/replicated_problem.h"
+
+namespace nimbus::mc {
+
+// The sums over the kept batches, per padded cell and band ([cell][band], ReplicatedProblem::
+// box_index), and the kept batches' counts.
+struct KeptBatches {
+    std::vector<double> sum, sumsq;    // of each batch's fluence estimate
+    std::vector<double> rsum, rsumsq;  // of the reduced (unscattered) fluence, with tally_reduced
+    std::int64_t photons = 0, collisions = 0, segments = 0;
+    KeptBatches(const ReplicatedProblem& p, bool tally_reduced);
+};
+
+class BatchInFlight {
+public:
+    // Tracing accumulates in p's voxels (Voxel::tally) and zeroes them again before trace()
+    // returns; p must outlive the batch.
+    BatchInFlight(ReplicatedProblem& p, const MonteCarloOptions& opt, const ForwardSettings& settings);
+
+    // Traces part [k0, k1) of the `steps` steps of `batch` (of `layout` batches) into the batch:
+    // of every term with N photons, the photons [lo + (hi - lo) k0 / steps, lo + (hi - lo) k1 /
+    // steps) of its batch range [lo, hi) = [batch N / layout, (batch + 1) N / layout). k0 = 0
+    // also books the batch's incident power and the rays that miss the box.
+    void trace(int batch, int layout, std::int64_t k0, std::int64_t k1, std::int64_t steps);
+
+    // Folds the batch into `kept` (keep) or drops it; the batch in flight is empty afterwards.
+    void end(bool keep, KeptBatches& kept);
+
+    // The batch's energy counters per band (W), so far.
+    const std::vector<Counters>& counters() const { return counters_; }
+
+private:
+    template <class Visit>
+    void for_each_listed(const std::vector<std::int64_t>& list, Visit&& visit) const;
+
+    ReplicatedProblem& p_;
+    const MonteCarloOptions& opt_;
+    const ForwardSettings& settings_;
+    std::vector<double> tally_, rtally_;  // [cell][band] of the batch (rtally_: reduced tally)
+    std::vector<double> reduced_acc_;     // the light term's reduced track per cell (tally_reduced)
+    std::vector<std::int64_t> touched_, light_touched_;  // cells tallied in the batch / by the term
+    std::vector<Counters> counters_;
+    std::int64_t photons_ = 0, collisions_ = 0, segments_ = 0;
+};
+
+}  // namespace nimbus::mc
