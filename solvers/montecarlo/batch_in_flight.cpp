@@ -7,14 +7,6 @@
 
 namespace nimbus::mc {
 
-namespace {
-
-// A touched-cell list longer than 1/kScanFraction of the padded grid is visited by scanning the
-// grid: a scan costs ~1 ns a cell, a list entry a cache miss.
-constexpr std::int64_t kScanFraction = 8;
-
-}  // namespace
-
 KeptBatches::KeptBatches(const ReplicatedProblem& p, bool tally_reduced)
     : sum(static_cast<size_t>(p.padded_cells * p.nb), 0.0), sumsq(sum.size(), 0.0) {
     if (tally_reduced) rsum.assign(sum.size(), 0.0), rsumsq.assign(sum.size(), 0.0);
@@ -33,7 +25,9 @@ BatchInFlight::BatchInFlight(ReplicatedProblem& p, const MonteCarloOptions& opt,
 
 template <class Visit>
 void BatchInFlight::for_each_listed(const std::vector<std::int64_t>& list, Visit&& visit) const {
-    if (static_cast<std::int64_t>(list.size()) * kScanFraction < p_.padded_cells) {
+    // A scan costs ~1 ns a cell, a list entry a cache miss.
+    const std::int64_t f = settings_.fold_scan_fraction;
+    if (f == 0 || static_cast<std::int64_t>(list.size()) * f < p_.padded_cells) {
         for (const std::int64_t idx : list) visit(idx);
     } else {  // every cell once; the unlisted ones fold zeros, which changes no sum
         for (std::int64_t idx = 0; idx < p_.padded_cells; ++idx) visit(idx);

@@ -6,7 +6,8 @@
 // Tallies cost O(cells touched), not O(grid): trace_photons (trace_light.h) lists the voxels
 // whose accumulator it lit; after each light term they are folded into the per-band batch
 // tally (x P/h² per band) and zeroed, and the cells of the batch tally are listed again for
-// end(). A list longer than 1/8 of the padded grid is visited by scanning the grid instead,
+// end(). A list longer than 1/8 of the padded grid (ForwardSettings::fold_scan_fraction) is
+// visited by scanning the grid instead,
 // which streams through memory where the list's scattered entries miss the cache; each cell's
 // fold is independent of the others', so both give bit-identical tallies (only the term's total
 // track, summed over the cells for the diffuse_volume counter, is summed in the visiting order

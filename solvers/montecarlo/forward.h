@@ -71,6 +71,9 @@ struct ForwardSettings {
     // default cloud it costs ~30% more instructions per collision for ~4% less variance per
     // cell: the live-pixel entry (photon.h) already drops the rays that meet no medium.
     bool forced_first_collision = false;
+    // Touched-cell lists longer than 1/fold_scan_fraction of the padded grid are folded by a
+    // scan of the grid (batch_in_flight.h); 0: always by the list. Changes speed, not fields.
+    std::int64_t fold_scan_fraction = 8;
 };
 
 struct ForwardResult {
