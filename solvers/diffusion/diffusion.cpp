@@ -6,6 +6,7 @@
 #include "solvers/diffusion/band_groups.h"
 #include "solvers/diffusion/solve_diffusion.h"
 #include "solvers/diffusion/sources.h"
+#include "src/physics/lights.h"
 #include "src/scene/emission.h"
 
 namespace nimbus {
@@ -66,24 +67,32 @@ public:
             }
             const auto res = diffusion::solve_diffusion(d, p, solve_opt, ctx.report);
             solves += static_cast<int>(group.rhs_weights.size());
-            for (const auto& use : group.bands) {
-                auto& fl = out.fluence[static_cast<size_t>(use.band)];
-                auto& fx = out.flux[static_cast<size_t>(use.band)];
-                // The delta-scaled solve leaves the forward-peak light in T' (delta_scaling.h).
-                for_each_cell(fl.allocated(), [&](int i, int j, int k) {
+            ScopedTimer bands_timer(ctx.report, "bands");  // each band's fields from the solutions and the forward peak
+            const std::vector<DirectionalLight>& L = ctx.light.lights;
+            std::vector<double> dT(L.size(), 0.0);  // T' - T per light at the cell, shared by the group's bands
+            for_each_cell(out.fluence[0].allocated(), [&](int i, int j, int k) {  // owned + ghosts
+                const bool peak_on =
+                    diffusion::forward_peak_transmittance(ctx.light, group.optics, opt_.delta_scaling, i, j, k, dT.data());
+                for (const auto& use : group.bands) {
+                    double peak = 0.0;
                     Vec3 peak_flux;
-                    const double peak = diffusion::forward_peak_fluence(
-                        ctx.light, group.optics, use.band, opt_.delta_scaling, i, j, k, &peak_flux);
+                    if (peak_on)
+                        for (size_t l = 0; l < L.size(); ++l) {
+                            const double et = band_value(L[l].E0, use.band) * dT[l];
+                            peak += et;
+                            peak_flux += L[l].w * et;
+                        }
                     double u = 0.0, f[3] = {0.0, 0.0, 0.0};
                     for (const auto& t : use.terms) {
                         u += t.scale * res.U[static_cast<size_t>(t.rhs)](i, j, k);
                         for (int c = 0; c < 3; ++c) f[c] += t.scale * res.flux[static_cast<size_t>(t.rhs)](i, j, k, c);
                     }
                     if (linear && opt_.clamp_negative) u = std::max(u, 0.0);
-                    fl(i, j, k) = 4.0 * std::numbers::pi * u + peak;
+                    out.fluence[static_cast<size_t>(use.band)](i, j, k) = 4.0 * std::numbers::pi * u + peak;
+                    auto& fx = out.flux[static_cast<size_t>(use.band)];
                     for (int c = 0; c < 3; ++c) fx(i, j, k, c) = f[c] + peak_flux[c];
-                });
-            }
+                }
+            });
         }
         ctx.report.values()["diffusion"]["solves"] = solves;
         ctx.report.values()["diffusion"]["bands"] = m.nbands();

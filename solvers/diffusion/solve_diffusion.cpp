@@ -12,6 +12,7 @@
 #include "solvers/diffusion/solve_region.h"
 #include "src/core/error.h"
 #include "src/core/halo.h"
+#include "src/core/report.h"
 
 namespace nimbus::diffusion {
 namespace {
@@ -26,7 +27,10 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
                              const DiffusionOptions& opt, Report& report) {
     const size_t nrhs = p.Q0.size();
     DiffusionResult res;
-    res.region = find_solve_region(d, p, opt.margin);
+    {
+        ScopedTimer t(report, "region");
+        res.region = find_solve_region(d, p, opt.margin);
+    }
     for (size_t r = 0; r < nrhs; ++r) {
         res.U.emplace_back(d.local(), 1, 1, 0.0);
         res.flux.emplace_back(d.local(), 1, 3, 0.0);
@@ -47,6 +51,7 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
     LinearSolveOutput lin = opt.solver == "petsc"
                                 ? solve_with_petsc(d, assembler, p, res.region, opt, report)
                                 : solve_with_hypre(d, assembler, p, res.region, opt, report);
+    ScopedTimer flux_timer(report, "flux");  // U on the local box, F = -grad U / (3 kappa_tr) + ..., clamping
     for (size_t r = 0; r < nrhs; ++r) {
         size_t n = 0;
         for_each_cell(lin.box, [&](int i, int j, int k) {

@@ -1,6 +1,7 @@
 #include "solvers/diffusion/sources.h"
 
 #include <numbers>
+#include <vector>
 
 #include "solvers/diffusion/delta_scaling.h"
 #include "src/core/halo.h"
@@ -56,20 +57,27 @@ DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const Lig
     return p;
 }
 
+bool forward_peak_transmittance(const LightTransport& light, const BandOptics& optics, bool delta_scaling,
+                                int i, int j, int k, double* dT) {
+    const DeltaScaledOptics s = delta_scale(optics.sigma_t, optics.albedo, optics.g, delta_scaling);
+    if (!(s.f > 0.0)) return false;
+    for (size_t l = 0; l < light.lights.size(); ++l) {
+        const int li = static_cast<int>(l);
+        dT[l] = light.transmittance(li, s.sigma_t, i, j, k) - light.transmittance(li, optics.sigma_t, i, j, k);
+    }
+    return true;
+}
+
 double forward_peak_fluence(const LightTransport& light, const BandOptics& optics, int band,
                             bool delta_scaling, int i, int j, int k, Vec3* flux) {
-    const DeltaScaledOptics s = delta_scale(optics.sigma_t, optics.albedo, optics.g, delta_scaling);
+    std::vector<double> dT(light.lights.size(), 0.0);
+    forward_peak_transmittance(light, optics, delta_scaling, i, j, k, dT.data());
     double e = 0.0;
     Vec3 ew;
-    if (s.f > 0.0) {
-        for (size_t l = 0; l < light.lights.size(); ++l) {
-            const int li = static_cast<int>(l);
-            const double et = band_value(light.lights[l].E0, band) *
-                              (light.transmittance(li, s.sigma_t, i, j, k) -
-                               light.transmittance(li, optics.sigma_t, i, j, k));
-            e += et;
-            ew += light.lights[l].w * et;
-        }
+    for (size_t l = 0; l < light.lights.size(); ++l) {
+        const double et = band_value(light.lights[l].E0, band) * dT[l];
+        e += et;
+        ew += light.lights[l].w * et;
     }
     if (flux) *flux = ew;
     return e;

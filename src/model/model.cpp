@@ -15,6 +15,19 @@ double log_sinhc(double x) {
     return x + std::log1p(-std::exp(-2.0 * x)) - std::log(2.0 * x);
 }
 
+// sinh(x) / x for 0 <= x <= ~700: the Taylor series sum x^2n / (2n+1)! below 1/2 (the first
+// omitted term, x^16 / 17!, is below 5e-20 there), one exp above (e - 1/e loses at most a factor
+// 2.2 of its precision at x = 1/2). About a third of log_sinhc's cost.
+double sinhc(double x) {
+    if (x < 0.5) {
+        const double t = x * x;
+        return 1.0 + t * (1.0 / 6 + t * (1.0 / 120 + t * (1.0 / 5040 + t * (1.0 / 362880 + t * (1.0 / 39916800 +
+               t * (1.0 / 6227020800 + t * (1.0 / 1307674368000)))))));
+    }
+    const double e = std::exp(x);
+    return 0.5 * (e - 1.0 / e) / x;
+}
+
 }  // namespace
 
 double LightTransport::transmittance_mean(const Decomposition& d, const Field<double>& rho, int light,
@@ -39,8 +52,14 @@ double LightTransport::transmittance_mean(const Decomposition& d, const Field<do
     }
     const Vec3& w = lights[static_cast<size_t>(light)].w;
     g = g - w * dot(w, g) + w * rc;  // along the light: d tau_rho / ds = rho, exactly
-    double log_mean = -sigma_t * tc;
-    for (int a = 0; a < 3; ++a) log_mean += log_sinhc(0.5 * sigma_t * h * std::abs(g[a]));
+    double x[3];
+    for (int a = 0; a < 3; ++a) x[a] = 0.5 * sigma_t * h * std::abs(g[a]);
+    // e^{-sigma_t tc} and the sinhc product are both finite when their exponents are below 600;
+    // beyond, the sum of logarithms (e^{-50} x (e^{50}/100) at kappa h = 100 in a thick slab).
+    const double depth = sigma_t * tc;
+    if (depth < 600.0 && x[0] + x[1] + x[2] < 600.0) return std::exp(-depth) * (sinhc(x[0]) * sinhc(x[1]) * sinhc(x[2]));
+    double log_mean = -depth;
+    for (int a = 0; a < 3; ++a) log_mean += log_sinhc(x[a]);
     return std::exp(log_mean);
 }
 
