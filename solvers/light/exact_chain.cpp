@@ -1,9 +1,10 @@
 #include "solvers/light/exact_chain.h"
 
-#include <mpi.h>
-
 #include <cmath>
 #include <limits>
+#include <span>
+
+#include "solvers/sweep/chain.h"
 
 namespace nimbus {
 
@@ -40,49 +41,47 @@ void exact_tau_chain(const Decomposition& d, RayGrid& slab, double h, const Dire
                      Field<double>& tau) {
     const Vec3 b = -normalized(light.w);  // toward the light
     const Box& own = d.local();
-    // Horizontal light never crosses a z face: every rank is on its own.
-    const int sz = b.z > 0 ? 1 : (b.z < 0 ? -1 : 0);
-    const int upstream = sz == 0 ? MPI_PROC_NULL : d.neighbor(2, sz);
-    const int downstream = sz == 0 ? MPI_PROC_NULL : d.neighbor(2, -sz);
-    // The chain from this rank downstream (away from the light): whose rays cross this slab.
-    std::vector<int> chain{d.rank()};
-    if (sz != 0) {
-        int z_coord = d.coords()[2];
-        for (int c = z_coord - sz; c >= 0 && c < d.dims()[2]; c -= sz) {
-            int coords[3] = {0, 0, c};
-            int r = 0;
-            MPI_Cart_rank(d.comm(), coords, &r);
-            chain.push_back(r);
-        }
+    // The partial sums travel away from the light; horizontal light never crosses a z face
+    // (dir 0: every rank is on its own).
+    const int dir = b.z > 0 ? -1 : (b.z < 0 ? 1 : 0);
+    const sweep::ChainLink link = sweep::chain_link(d, dir);
+    // Group g: the rays of the rank at chain position g, which cross the slabs of positions 0..g.
+    sweep::ChainGroups groups;
+    std::vector<Box> boxes;
+    for (int g = 0; g < link.length; ++g) {
+        boxes.push_back(d.box_of(sweep::chain_rank(d, dir, g)));
+        groups.size.push_back(static_cast<size_t>(boxes.back().cells()));
+        groups.last.push_back(g);
     }
     // The face where rays from downstream cells enter this slab.
-    const double z_entry = sz > 0 ? own.lo[2] : own.hi[2];
-    std::vector<double> piece, upstream_sum;
-    for (size_t q = 0; q < chain.size(); ++q) {
-        const Box cells = d.box_of(chain[q]);
-        piece.assign(static_cast<size_t>(cells.cells()), 0.0);
+    const double z_entry = b.z > 0 ? own.lo[2] : own.hi[2];
+    std::vector<double> mine;
+    sweep::pass_down(d, dir, groups, [&](int g, sweep::ChainIO& io) {
+        const bool downstream_rays = g > link.position;
+        const Box& cells = boxes[static_cast<size_t>(g)];
+        // This slab's piece of the rays (traced before waiting for upstream's partial sums).
+        std::span<double> piece = io.out();
+        if (!downstream_rays) {
+            mine.resize(static_cast<size_t>(cells.cells()));
+            piece = mine;
+        }
         size_t p = 0;
         for_each_cell(cells, [&](int i, int j, int k) {
             std::array<double, 3> pos{i + 0.5, j + 0.5, k + 0.5};
-            if (q > 0) {  // a downstream cell: start where its ray enters this slab
+            if (downstream_rays) {  // start where the ray enters this slab
                 const double t = (z_entry - pos[2]) / b.z;
                 for (int a = 0; a < 3; ++a) pos[a] += t * b[a];
                 pos[2] = z_entry;
             }
             piece[p++] = ray_integral(slab, b, pos) * h;
         });
-        upstream_sum.assign(piece.size(), 0.0);
-        if (upstream != MPI_PROC_NULL)
-            MPI_Recv(upstream_sum.data(), static_cast<int>(upstream_sum.size()), MPI_DOUBLE, upstream, 930,
-                     d.comm(), MPI_STATUS_IGNORE);
-        for (size_t c = 0; c < piece.size(); ++c) piece[c] += upstream_sum[c];
-        if (q == 0) {
+        const std::span<const double> upstream_sum = io.in();
+        for (size_t c = 0; c < upstream_sum.size(); ++c) piece[c] += upstream_sum[c];
+        if (!downstream_rays) {
             p = 0;
             for_each_cell(own, [&](int i, int j, int k) { tau(i, j, k) = piece[p++]; });
-        } else {
-            MPI_Send(piece.data(), static_cast<int>(piece.size()), MPI_DOUBLE, downstream, 930, d.comm());
         }
-    }
+    });
 }
 
 }  // namespace nimbus

@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <span>
 
 #include "solvers/lpm/gather_kernel.h"
 #include "solvers/lpm/segment_kernel.h"
+#include "solvers/sweep/chain.h"
 #include "src/core/halo.h"
 
 namespace nimbus::lpm {
@@ -438,46 +440,40 @@ void sweep_map(const Decomposition& d, int face, const MapInputs& in, MapAccumul
     const int far_side = m.s > 0 ? 1 : 0;
 
     if (z_map) {
-        // Pipelined down (or up) the slab chain, one group of p directions at a time.
-        const int up = d.neighbor(2, -m.s), down = d.neighbor(2, m.s);
+        // Pipelined down (or up) the slab chain, one group of p directions at a time
+        // (solvers/sweep/chain.h): group grp's message is its p maps' rays leaving the slab.
         const size_t real = static_cast<size_t>(sl.NvS) * sl.NuS;
-        std::vector<std::vector<double>> sendbuf(static_cast<size_t>(p));
-        std::vector<MPI_Request> reqs;
         std::vector<double> A(ds * static_cast<size_t>(p)), B(A.size());
         const long t_first = m.s > 0 ? step_of_layer(m.alo) : step_of_layer(m.ahi - 1);
-        for (int grp = 0; grp < p; ++grp) {
+        sweep::ChainGroups groups;
+        groups.size.assign(static_cast<size_t>(p), real * static_cast<size_t>(p));
+        const sweep::ChainStats chain = sweep::pass_down(d, m.s, groups, [&](int grp, sweep::ChainIO& io) {
             std::fill(A.begin(), A.end(), 0.0);
             std::fill(B.begin(), B.end(), 0.0);
-            if (up != MPI_PROC_NULL) {
-                std::vector<double> buf(real * static_cast<size_t>(p));
-                const double t0 = MPI_Wtime();
-                MPI_Recv(buf.data(), static_cast<int>(buf.size()), MPI_DOUBLE, up, 900 + grp, d.comm(), MPI_STATUS_IGNORE);
-                acc.wait_seconds += MPI_Wtime() - t0;
+            const std::span<const double> entering = io.in();
+            if (!entering.empty())
                 for (int l = 0; l < p; ++l)
-                    std::copy(buf.begin() + static_cast<std::ptrdiff_t>(real * l), buf.begin() + static_cast<std::ptrdiff_t>(real * (l + 1)),
+                    std::copy(entering.begin() + static_cast<std::ptrdiff_t>(real * l),
+                              entering.begin() + static_cast<std::ptrdiff_t>(real * (l + 1)),
                               A.begin() + static_cast<std::ptrdiff_t>(ds * l + sl.row(0)));
-            }
             for (long t = t_first; t < t_first + m.layers(); ++t) {
                 for (int l = 0; l < p; ++l)
                     run_direction(grp * p + l, t, A.data() + ds * static_cast<size_t>(l), B.data() + ds * static_cast<size_t>(l));
                 deposit(layer_of_step(t) - m.alo, grp * p, grp * p + p);
                 std::swap(A, B);
             }
-            if (down != MPI_PROC_NULL) {
-                std::vector<double>& buf = sendbuf[static_cast<size_t>(grp)];
-                buf.resize(real * static_cast<size_t>(p));
+            const std::span<double> leaving = io.out();
+            if (!leaving.empty()) {
                 for (int l = 0; l < p; ++l)
                     std::copy(A.begin() + static_cast<std::ptrdiff_t>(ds * l + sl.row(0)),
                               A.begin() + static_cast<std::ptrdiff_t>(ds * l + sl.row(0) + real),
-                              buf.begin() + static_cast<std::ptrdiff_t>(real * l));
-                reqs.emplace_back();
-                MPI_Isend(buf.data(), static_cast<int>(buf.size()), MPI_DOUBLE, down, 900 + grp, d.comm(), &reqs.back());
+                              leaving.begin() + static_cast<std::ptrdiff_t>(real * l));
             } else {
                 for (int l = 0; l < p; ++l)
                     acc.escaped[2][far_side] += map_power(grp * p + l, A.data() + ds * static_cast<size_t>(l));
             }
-        }
-        MPI_Waitall(static_cast<int>(reqs.size()), reqs.data(), MPI_STATUSES_IGNORE);
+        });
+        acc.wait_seconds += chain.wait_seconds;
     } else {
         // Every slab at once; rays crossing a slab boundary are exchanged after each step.
         std::vector<double> A(ds * static_cast<size_t>(nd), 0.0), B(A.size(), 0.0);

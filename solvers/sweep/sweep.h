@@ -1,4 +1,5 @@
-// The sweep engine shared by every transport sweep (sun transmittance now; DOM and LPM next).
+// The sweep engine shared by every transport sweep (sun transmittance, DOM). Passes of whole
+// groups down the slab chain (LPM z maps, the exact light pass) are in chain.h.
 // Pipelines a sweep over the process grid in KBA style (Koch, Baker, Alcouffe 1992): a rank
 // computes its box in upwind order once its upstream neighbours' boundary planes have arrived.
 // Along z (the slab chain), the box is cut into tiles of rows across the slab face so the
