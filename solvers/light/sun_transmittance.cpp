@@ -95,10 +95,6 @@ LightTransport exact_light_transport(const Decomposition& d, const Medium& m,
     lt.lights = lights;
     Progress progress("light pass (exact)", static_cast<double>(lights.size()), d.rank() == 0);
     for (const auto& light : lights) {
-        for (int a = 0; a < 3; ++a)
-            if (periodic[a] && std::abs(light.w[a]) == norm(light.w))
-                throw Error(fmt::format("light '{}' travels along periodic axis {}: it never leaves the domain",
-                                        light.name, "xyz"[a]));
         Field<double> tau(d.local(), 1, 1, 0.0);
         if (chain) {
             exact_tau_chain(d, grid, m.grid.h, light, tau);
@@ -128,11 +124,27 @@ void check_light_method(const Decomposition& d, LightSpec::Method method) {
                                 d.describe()));
 }
 
+void check_lights_leave(const Decomposition& d, const std::vector<DirectionalLight>& lights) {
+    for (const auto& light : lights) {
+        for (int a = 0; a < 3; ++a)
+            if (d.periodic(a) && std::abs(light.w[a]) == norm(light.w))
+                throw Error(fmt::format("light '{}' travels along periodic axis {}: it never leaves the domain",
+                                        light.name, "xyz"[a]));
+        if (d.periodic(2) && light.w.z != 0.0)
+            throw Error(fmt::format("light '{}' is not horizontal (direction z = {:.3g}) and grid.periodic z is "
+                                    "set: light leaving through the bottom would enter again at the top, which "
+                                    "the light pass does not model; set grid.periodic = [x, y, false] (periodic z "
+                                    "suits horizontal light and volume sources)",
+                                    light.name, light.w.z));
+    }
+}
+
 LightTransport compute_light_transport(const Decomposition& d, const Medium& m,
                                        const std::vector<DirectionalLight>& lights, Report& report,
                                        const sweep::SweepOptions& opt, LightSpec::Method method) {
     ScopedTimer timer(report, "light");
     check_light_method(d, method);
+    check_lights_leave(d, lights);
     if (method == LightSpec::Method::exact) return exact_light_transport(d, m, lights, report);
     LightTransport lt;
     lt.lights = lights;

@@ -35,6 +35,13 @@ namespace nimbus {
 // throws Error on every rank alike. Run also before the costly phases (pipeline, nimbus info).
 void check_light_method(const Decomposition& d, LightSpec::Method method);
 
+// Lights must leave the domain: none may travel along a periodic axis only, and with periodic z
+// every light must be horizontal (light leaving through the bottom would enter again at the
+// top: an endless vertical stack, which neither light pass models; the slab chain cannot wrap).
+// Throws Error on every rank alike; compute_light_transport checks it, and so do the pipeline's
+// pre-flight and `nimbus info`.
+void check_lights_leave(const Decomposition& d, const std::vector<DirectionalLight>& lights);
+
 LightTransport compute_light_transport(const Decomposition& d, const Medium& m,
                                        const std::vector<DirectionalLight>& lights, Report& report,
                                        const sweep::SweepOptions& opt = {},

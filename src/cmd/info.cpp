@@ -143,6 +143,7 @@ void info(const RunOptions& opts) {
     m.bands = s.bands;
     m.rho = std::move(rho);
     check_light_method(d, s.light.method);
+    check_lights_leave(d, make_lights(s));
     check_volume_sources(volume_sources(s), m.rho, d);
     make_model(s.model)->check(s, d, m);
 }

@@ -6,6 +6,7 @@
 #include <numbers>
 
 #include "solvers/light/sun_transmittance.h"
+#include "src/core/error.h"
 #include "src/core/halo.h"
 #include "tests/support/mpi_test.h"
 
@@ -78,6 +79,25 @@ TEST(SunTransmittance, CellMeanIsExactInAThickSlab) {
             EXPECT_LT(worst, 1e-9) << "sigma_t " << sigma_t << " theta " << theta_deg;
         }
     }
+}
+
+// Light must leave the domain: with periodic z only horizontal light is accepted, by both
+// methods (the slab chain cannot wrap z, and main's exact pass hung waiting on itself), before
+// anything is traced; a light along a periodic axis is refused too.
+TEST(SunTransmittance, PeriodicZNeedsHorizontalLight) {
+    LitMedium s = make(MPI_COMM_WORLD, {4, 4, 6}, 1.0, [](int, int, int) { return 0.5; }, {false, false, true});
+    const DirectionalLight oblique{"sun", normalized(Vec3{0.3, 0.2, -1.0}), {1.0}};
+    const DirectionalLight horizontal{"low sun", normalized(Vec3{1.0, 0.5, 0.0}), {1.0}};
+    const DirectionalLight along_x{"along x", Vec3{1.0, 0.0, 0.0}, {1.0}};
+    EXPECT_THROW(check_lights_leave(s.d, {horizontal, oblique}), Error);
+    EXPECT_NO_THROW(check_lights_leave(s.d, {horizontal}));
+    for (const auto method : {LightSpec::Method::sweep, LightSpec::Method::exact}) {
+        Report r;
+        EXPECT_THROW(compute_light_transport(s.d, s.m, {oblique}, r, {}, method), Error);
+    }
+    LitMedium px = make(MPI_COMM_WORLD, {4, 4, 6}, 1.0, [](int, int, int) { return 0.5; }, {true, false, false});
+    EXPECT_THROW(check_lights_leave(px.d, {along_x}), Error);
+    EXPECT_NO_THROW(check_lights_leave(px.d, {oblique}));
 }
 
 TEST(SunTransmittance, ExactForAxisAlignedLightInAnyMedium) {
