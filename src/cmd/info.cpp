@@ -143,9 +143,9 @@ void info(const RunOptions& opts) {
     m.bands = s.bands;
     m.rho = std::move(rho);
     check_light_method(d, s.light.method);
-    check_lights_leave(d, make_lights(s));
     check_volume_sources(volume_sources(s), m.rho, d);
     make_model(s.model)->check(s, d, m);
+    check_lights_leave(d, make_lights(s));  // after the model's own, more specific refusals
 }
 
 }  // namespace

@@ -149,9 +149,9 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
     }
     // What the model (and the sources) would refuse after the light pass, refused now.
     check_light_method(d, scene.light.method);
-    check_lights_leave(d, make_lights(scene));
     check_volume_sources(volume_sources(scene), medium.rho, d);
     model->check(scene, d, medium);
+    check_lights_leave(d, make_lights(scene));  // after the model's own, more specific refusals
 
     const LightTransport light = compute_light_transport(d, medium, make_lights(scene), report, {}, scene.light.method);
     DiffuseSolution diffuse;

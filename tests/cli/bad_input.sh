@@ -101,6 +101,9 @@ if [ "$np" -gt 1 ]; then
   expect_error 'light.method = "sweep" sweeps along z and needs slabs' "${small[@]}" --set 'light.method="sweep"' --set "grid.process_grid=[$np,1,1]"
 fi
 SUB=info expect_error "model dom: grid.periodic z is not supported" "${small[@]}" --set 'model.name="dom"' --set "grid.periodic=[false,false,true]"
+# Periodic z with a sun: light leaving the bottom would re-enter at the top (no light pass models it).
+SUB=info expect_error "is not horizontal .* and grid.periodic z is set" "${small[@]}" --set "grid.periodic=[false,false,true]"
+expect_error "is not horizontal .* and grid.periodic z is set" "${small[@]}" --set 'model.name="single"' --set "grid.periodic=[false,false,true]" --set 'light.method="exact"'
 if [ "$np" -gt 1 ] && "$nimbus" info --set "grid.n=[8,8,8]" 2>&1 | grep -q "models in this build:.*lpm"; then
   expect_error "model lpm needs slabs along z" "${small[@]}" --set 'model.name="lpm"' --set "grid.process_grid=[2,1,1]"
 fi
