@@ -1,8 +1,9 @@
 // Scene files (TOML) -> Scene. The schema is the Scene struct (src/scene/scene.h) and the
-// model options (src/model/options.h), one key per field; scenes/default.toml shows every
-// table. Steps: parse (toml11) -> apply --set overrides to the tree -> convert table by table
-// (unknown keys, types, choices, the medium's own ranges) -> Scene::validate() and the
-// options' validate(), whose messages are given the file and line of the offending key.
+// model options (src/model/options.h, whose for_each_option lists each [model.<name>] table's
+// keys), one key per field; scenes/default.toml shows every table. Steps: parse (toml11) ->
+// apply --set overrides to the tree -> convert table by table (unknown keys, types, choices,
+// the medium's own ranges) -> Scene::validate() and the options' validate(), whose messages are
+// given the file and line of the offending key.
 #include "io/scene/scene_toml.h"
 
 #include <fmt/format.h>
@@ -12,6 +13,7 @@
 #include <fstream>
 #include <regex>
 #include <sstream>
+#include <type_traits>
 
 #include "io/scene/default_scene.h"
 #include "io/scene/scene_overrides.h"
@@ -266,89 +268,28 @@ void read_camera(const TableReader& t, CameraSpec& c) {
     c.domain_units = t.read_choice("units", kCameraUnits, c.domain_units ? 0 : 1) == 0;
 }
 
-void read_montecarlo(const TableReader& mc, MonteCarloOptions& o) {
-    mc.read("photons", o.photons);
-    mc.read("time_budget", o.time_budget);
-    mc.read("target_rel_error", o.target_rel_error);
-    mc.read("seed", o.seed);
-    mc.read("batches", o.batches);
-    mc.read("roulette_weight", o.roulette_weight);
-    mc.read("max_replicated_memory_gb", o.max_replicated_memory_gb);
-    mc.read("image", o.image);
-    mc.read("samples_per_pixel", o.samples_per_pixel);
-}
-
-void read_diffusion(const TableReader& df, DiffusionOptions& o) {
-    df.read("solver", o.solver);
-    df.read("tolerance", o.tolerance);
-    df.read("max_iterations", o.max_iterations);
-    df.read("margin", o.margin);
-    df.read("max_transport_length", o.max_transport_length);
-    df.read("clamp_negative", o.clamp_negative);
-    df.read("delta_scaling", o.delta_scaling);
-    df.read("flux_limiter", o.flux_limiter);
-    df.read("limiter_iterations", o.limiter_iterations);
-    df.read("limiter_tolerance", o.limiter_tolerance);
-    df.read("petsc_options", o.petsc_options);
-}
-
-void read_dom(const TableReader& t, DomOptions& o) {
-    t.read("quadrature", o.quadrature);
-    t.read("order", o.order);
-    t.read("polar", o.polar);
-    t.read("azimuthal", o.azimuthal);
-    t.read("legendre_order", o.legendre_order);
-    t.read("delta_m", o.delta_m);
-    t.read("scheme", o.scheme);
-    t.read("iteration", o.iteration);
-    t.read("tolerance", o.tolerance);
-    t.read("max_iterations", o.max_iterations);
-    t.read("tile_rows", o.tile_rows);
-    t.read("octant_overlap", o.octant_overlap);
-    if (t.has("reflective")) {
-        const toml::value& v = t.at("reflective");
-        if (!v.is_array()) t.fail("reflective", "must be an array of face names, e.g. [\"z-\"]");
-        o.reflective.clear();
-        for (const toml::value& f : v.as_array()) {
-            if (!f.is_string()) t.fail("reflective", "must be an array of face names, e.g. [\"z-\"]");
-            o.reflective.push_back(f.as_string().str);
-        }
-    }
-    t.read("sky", o.sky);
-}
-
-void read_lpm(const TableReader& t, LpmOptions& o) {
-    t.read("p", o.p);
-    t.read("refinement", o.refinement);
-    t.read("k", o.k);
-    t.read("solution_bins", o.solution_bins);
-    t.read("iterations", o.iterations);
-    t.read("epsilon", o.epsilon);
-    t.read("tail", o.tail);
-}
-
-void read_psf(const TableReader& t, PsfOptions& o) {
-    t.read("levels", o.levels);
-    t.read("step_growth", o.step_growth);
+// [model.<name>]: the keys of the options' for_each_option (src/model/options.h), each read as
+// its member's type. The only list option, model.dom.reflective, holds face names, and its
+// type error says so (a new list option needs its own words here).
+template <class Options>
+void read_options(const TableReader& model, const std::string& name, Options& o) {
+    const TableReader t = model.table(name, option_keys(o));
+    for_each_option(o, [&](const char* key, auto& value) {
+        using T = std::remove_reference_t<decltype(value)>;
+        if constexpr (std::is_same_v<T, std::vector<std::string>>)
+            t.read(key, value, "face names, e.g. [\"z-\"]");
+        else
+            t.read(key, value);
+    });
 }
 
 void read_model(const TableReader& t, ModelSpec& m) {
     if (t.has("name")) m.name = kModelNames[static_cast<size_t>(t.read_choice("name", kModelNames, 0))];
-    read_montecarlo(t.table("montecarlo", {"photons", "time_budget", "target_rel_error", "seed", "batches",
-                                           "roulette_weight", "max_replicated_memory_gb", "image",
-                                           "samples_per_pixel"}),
-                    m.montecarlo);
-    read_diffusion(t.table("diffusion", {"solver", "tolerance", "max_iterations", "margin",
-                                         "max_transport_length", "clamp_negative", "delta_scaling",
-                                         "flux_limiter", "limiter_iterations", "limiter_tolerance",
-                                         "petsc_options"}),
-                   m.diffusion);
-    read_dom(t.table("dom", {"quadrature", "order", "polar", "azimuthal", "legendre_order", "delta_m",
-                             "scheme", "iteration", "tolerance", "max_iterations", "tile_rows",
-                             "octant_overlap", "reflective", "sky"}),
-             m.dom);
-    read_lpm(t.table("lpm", {"p", "refinement", "k", "solution_bins", "iterations", "epsilon", "tail"}), m.lpm);
-    read_psf(t.table("psf", {"levels", "step_growth"}), m.psf);
+    read_options(t, "montecarlo", m.montecarlo);
+    read_options(t, "diffusion", m.diffusion);
+    read_options(t, "dom", m.dom);
+    read_options(t, "lpm", m.lpm);
+    read_options(t, "psf", m.psf);
 }
 
 Scene convert(const toml::value& tree, const std::string& source, const fs::path& base_dir) {

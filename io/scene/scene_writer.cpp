@@ -5,7 +5,10 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <cstdint>
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include "io/scene/scene_toml.h"
 #include "io/scene/toml_reader.h"
@@ -40,39 +43,22 @@ std::string nums(const std::array<double, 3>& a) { return list(a, num); }
 std::string vec(const Vec3& v) { return nums({v.x, v.y, v.z}); }
 std::string per_band(const std::vector<double>& v) { return v.size() == 1 ? num(v[0]) : list(v, num); }
 
-void write_dom(std::ostream& o, const DomOptions& d) {
-    o << "[model.dom]\n";
-    o << "quadrature = " << str(d.quadrature) << "\n";
-    o << "order = " << d.order << "\n";
-    o << "polar = " << d.polar << "\n";
-    o << "azimuthal = " << d.azimuthal << "\n";
-    o << "legendre_order = " << d.legendre_order << "\n";
-    o << "delta_m = " << boolean(d.delta_m) << "\n";
-    o << "scheme = " << str(d.scheme) << "\n";
-    o << "iteration = " << str(d.iteration) << "\n";
-    o << "tolerance = " << num(d.tolerance) << "\n";
-    o << "max_iterations = " << d.max_iterations << "\n";
-    o << "tile_rows = " << d.tile_rows << "\n";
-    o << "octant_overlap = " << d.octant_overlap << "\n";
-    o << "reflective = " << list(d.reflective, str) << "\n";
-    o << "sky = " << str(d.sky) << "\n";
-}
+// One model option's value, in the form of the rest of the file.
+std::string option_value(int v) { return std::to_string(v); }
+std::string option_value(std::int64_t v) { return std::to_string(v); }
+std::string option_value(std::uint64_t v) { return std::to_string(v); }
+std::string option_value(double v) { return num(v); }
+std::string option_value(bool v) { return boolean(v); }
+std::string option_value(const std::string& v) { return str(v); }
+std::string option_value(const std::vector<std::string>& v) { return list(v, str); }
 
-void write_lpm(std::ostream& o, const LpmOptions& l) {
-    o << "[model.lpm]\n";
-    o << "p = " << l.p << "\n";
-    o << "refinement = " << l.refinement << "\n";
-    o << "k = " << l.k << "\n";
-    o << "solution_bins = " << l.solution_bins << "\n";
-    o << "iterations = " << l.iterations << "\n";
-    o << "epsilon = " << num(l.epsilon) << "\n";
-    o << "tail = " << str(l.tail) << "\n";
-}
-
-void write_psf(std::ostream& o, const PsfOptions& p) {
-    o << "[model.psf]\n";
-    o << "levels = " << p.levels << "\n";
-    o << "step_growth = " << num(p.step_growth) << "\n";
+// [model.<name>]: every key of the options' for_each_option (src/model/options.h), in order.
+template <class Options>
+void write_options(std::ostream& o, const std::string& name, const Options& opts) {
+    o << "[model." << name << "]\n";
+    for_each_option(opts, [&](const char* key, const auto& value) {
+        o << key << " = " << option_value(value) << "\n";
+    });
 }
 
 // The unit name to write: a named unit only when its scale is exactly the named one's.
@@ -172,35 +158,13 @@ std::string scene_to_toml(const Scene& s) {
     o << "emission_color = " << per_band(r.emission_color) << "\n";
     o << "exposure = " << num(r.exposure) << "\n";
 
-    const MonteCarloOptions& mc = s.model.montecarlo;
-    const DiffusionOptions& df = s.model.diffusion;
     o << "\n[model]\n";
     o << "name = " << str(s.model.name) << "\n";
-    o << "[model.montecarlo]\n";
-    o << "photons = " << mc.photons << "\n";
-    o << "time_budget = " << num(mc.time_budget) << "\n";
-    o << "target_rel_error = " << num(mc.target_rel_error) << "\n";
-    o << "seed = " << mc.seed << "\n";
-    o << "batches = " << mc.batches << "\n";
-    o << "roulette_weight = " << num(mc.roulette_weight) << "\n";
-    o << "max_replicated_memory_gb = " << num(mc.max_replicated_memory_gb) << "\n";
-    o << "image = " << boolean(mc.image) << "\n";
-    o << "samples_per_pixel = " << mc.samples_per_pixel << "\n";
-    o << "[model.diffusion]\n";
-    o << "solver = " << str(df.solver) << "\n";
-    o << "tolerance = " << num(df.tolerance) << "\n";
-    o << "max_iterations = " << df.max_iterations << "\n";
-    o << "margin = " << df.margin << "\n";
-    o << "max_transport_length = " << num(df.max_transport_length) << "\n";
-    o << "clamp_negative = " << boolean(df.clamp_negative) << "\n";
-    o << "delta_scaling = " << boolean(df.delta_scaling) << "\n";
-    o << "flux_limiter = " << str(df.flux_limiter) << "\n";
-    o << "limiter_iterations = " << df.limiter_iterations << "\n";
-    o << "limiter_tolerance = " << num(df.limiter_tolerance) << "\n";
-    o << "petsc_options = " << str(df.petsc_options) << "\n";
-    write_dom(o, s.model.dom);
-    write_lpm(o, s.model.lpm);
-    write_psf(o, s.model.psf);
+    write_options(o, "montecarlo", s.model.montecarlo);
+    write_options(o, "diffusion", s.model.diffusion);
+    write_options(o, "dom", s.model.dom);
+    write_options(o, "lpm", s.model.lpm);
+    write_options(o, "psf", s.model.psf);
 
     o << "\n[output]\n";
     o << "dir = " << str(s.output.dir) << "\n";

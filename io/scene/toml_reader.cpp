@@ -240,6 +240,20 @@ void TableReader::read(const std::string& key, Vec3& out) const {
     out = {a[0], a[1], a[2]};
 }
 
+void TableReader::read(const std::string& key, std::vector<std::string>& out,
+                       const std::string& items) const {
+    if (!has(key)) return;
+    const toml::value& v = at(key);
+    const std::string what = "must be an array of " + items;
+    if (!v.is_array()) fail(key, what);
+    std::vector<std::string> values;
+    for (const toml::value& e : v.as_array()) {
+        if (!e.is_string()) fail(key, what);
+        values.push_back(e.as_string().str);
+    }
+    out = std::move(values);
+}
+
 void TableReader::read_per_band(const std::string& key, std::vector<double>& out) const {
     if (!has(key)) return;
     const toml::value& v = at(key);

@@ -59,6 +59,9 @@ public:
     void read(const std::string& key, std::array<double, 3>& out) const;
     void read(const std::string& key, std::array<bool, 3>& out) const;
     void read(const std::string& key, Vec3& out) const;
+    // An array of strings; `items` says what they are in the error ("must be an array of <items>").
+    void read(const std::string& key, std::vector<std::string>& out,
+              const std::string& items = "strings") const;
     // A number (one value for every band) or an array of numbers (one per band).
     void read_per_band(const std::string& key, std::vector<double>& out) const;
     // A string that must be one of `choices`; returns its index, or `current` when absent.

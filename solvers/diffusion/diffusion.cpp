@@ -18,19 +18,7 @@ public:
 
     std::string name() const override { return "diffusion"; }
 
-    nlohmann::json options() const override {
-        return {{"solver", opt_.solver},
-                {"tolerance", opt_.tolerance},
-                {"max_iterations", opt_.max_iterations},
-                {"margin", opt_.margin},
-                {"max_transport_length", opt_.max_transport_length},
-                {"clamp_negative", opt_.clamp_negative},
-                {"delta_scaling", opt_.delta_scaling},
-                {"flux_limiter", opt_.flux_limiter},
-                {"limiter_iterations", opt_.limiter_iterations},
-                {"limiter_tolerance", opt_.limiter_tolerance},
-                {"petsc_options", opt_.petsc_options}};
-    }
+    nlohmann::json options() const override { return options_json(opt_); }
 
     // hypre's 7-point matrix, vectors and multigrid hierarchy, the right-hand sides and the per
     // band fluence and flux: 8 (26 + 4 bands) bytes per local cell, calibrated on the default

@@ -61,13 +61,7 @@ class DiscreteOrdinates final : public ScatteringModel {
 public:
     explicit DiscreteOrdinates(const DomOptions& opt) : opt_(opt) { opt_.validate(); }
     std::string name() const override { return "dom"; }
-    nlohmann::json options() const override {
-        return {{"quadrature", opt_.quadrature}, {"order", opt_.order}, {"polar", opt_.polar},
-                {"azimuthal", opt_.azimuthal}, {"legendre_order", opt_.legendre_order},
-                {"delta_m", opt_.delta_m}, {"scheme", opt_.scheme}, {"iteration", opt_.iteration},
-                {"tolerance", opt_.tolerance}, {"max_iterations", opt_.max_iterations},
-                {"tile_rows", opt_.tile_rows}, {"octant_overlap", opt_.octant_overlap}, {"reflective", opt_.reflective}, {"sky", opt_.sky}};
-    }
+    nlohmann::json options() const override { return options_json(opt_); }
     void solve(const SolveContext& ctx, DiffuseSolution& out) override;
     // Peak = about twice the state (3 moment fields, angular fluxes of the largest octant, the
     // band's coefficients, the light sources: state_bytes_per_cell below) per local cell, measured

@@ -19,11 +19,7 @@ class LightPropagationMaps final : public ScatteringModel {
 public:
     explicit LightPropagationMaps(const LpmOptions& o) : opt_(o) { opt_.validate(); }
     std::string name() const override { return "lpm"; }
-    nlohmann::json options() const override {
-        return {{"p", opt_.p}, {"refinement", opt_.refinement}, {"k", opt_.k},
-                {"solution_bins", opt_.solution_bins}, {"iterations", opt_.iterations}, {"epsilon", opt_.epsilon},
-                {"tail", opt_.tail}};
-    }
+    nlohmann::json options() const override { return options_json(opt_); }
 
     // Per local cell: the 6k² coarse bins of unpropagated light U (8 bytes each) and ~186 bytes of
     // fluence, deposits, coefficients and halo planes; measured on the default cloud (slopes

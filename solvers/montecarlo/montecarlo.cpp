@@ -17,17 +17,7 @@ public:
 
     std::string name() const override { return "montecarlo"; }
 
-    nlohmann::json options() const override {
-        return {{"photons", opt_.photons},
-                {"time_budget", opt_.time_budget},
-                {"target_rel_error", opt_.target_rel_error},
-                {"seed", opt_.seed},
-                {"batches", opt_.batches},
-                {"roulette_weight", opt_.roulette_weight},
-                {"max_replicated_memory_gb", opt_.max_replicated_memory_gb},
-                {"image", opt_.image},
-                {"samples_per_pixel", opt_.samples_per_pixel}};
-    }
+    nlohmann::json options() const override { return options_json(opt_); }
 
     void solve(const SolveContext& ctx, DiffuseSolution& out) override {
         mc::ForwardResult r;

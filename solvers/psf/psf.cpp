@@ -14,9 +14,7 @@ class PsfModel final : public ScatteringModel {
 public:
     explicit PsfModel(const PsfOptions& opt) : opt_(opt) {}
     std::string name() const override { return "psf"; }
-    nlohmann::json options() const override {
-        return {{"levels", opt_.levels}, {"step_growth", opt_.step_growth}};
-    }
+    nlohmann::json options() const override { return options_json(opt_); }
 
     void solve(const SolveContext& ctx, DiffuseSolution& out) override {
         {

@@ -17,6 +17,7 @@
 #include "src/core/decomposition.h"
 #include "src/core/field.h"
 #include "src/core/report.h"
+#include "src/model/options.h"
 #include "src/physics/lights.h"
 #include "src/render/image.h"
 #include "src/scene/medium.h"
@@ -93,5 +94,14 @@ public:
 
 // Zero-initialized fluence fields for every band on d's local box (+1 ghost).
 DiffuseSolution zero_solution(const Decomposition& d, int nbands);
+
+// Options (src/model/options.h) as the JSON object a model's options() returns: one entry per
+// key of their for_each_option.
+template <class Options>
+nlohmann::json options_json(const Options& o) {
+    nlohmann::json j = nlohmann::json::object();
+    for_each_option(o, [&](const char* key, const auto& value) { j[key] = value; });
+    return j;
+}
 
 }  // namespace nimbus

@@ -1,12 +1,26 @@
 // Options of each multiple-scattering model: plain structs with defaults and validate().
 // Only io/ parses text into them ([model.<name>] tables); models take them typed.
+//
+// Each struct's keys are listed once, in the for_each_option below it: f(key, member) for every
+// option, in the order of the scene file. The [model.<name>] table's known keys, its reading
+// and writing (io/scene) and the options a model echoes and stores (options_json,
+// src/model/model.h) all come from it; tests/unit/io_scene/option_keys_test.cpp checks that
+// they agree. A new option: its member here, a line in its for_each_option, a check in
+// validate() if it has a range, a non-default value in that test, and docs/scene_reference.toml
+// regenerated (tests/unit/io_scene/scene_load_test.cpp says how).
 #pragma once
 
+#include <concepts>
 #include <cstdint>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace nimbus {
+
+// O is T or const T: one for_each_option serves reading (T&) and writing (const T&).
+template <class O, class T>
+concept maybe_const = std::same_as<std::remove_const_t<O>, T>;
 
 // Forward light tracing reference (solvers/montecarlo).
 struct MonteCarloOptions {
@@ -21,7 +35,22 @@ struct MonteCarloOptions {
     bool image = false;                 // also path-trace the camera image
     int samples_per_pixel = 64;         // for the path-traced image
     void validate() const;
+    bool operator==(const MonteCarloOptions&) const = default;
 };
+
+// [model.montecarlo]
+template <maybe_const<MonteCarloOptions> O, class F>
+void for_each_option(O& o, F&& f) {
+    f("photons", o.photons);
+    f("time_budget", o.time_budget);
+    f("target_rel_error", o.target_rel_error);
+    f("seed", o.seed);
+    f("batches", o.batches);
+    f("roulette_weight", o.roulette_weight);
+    f("max_replicated_memory_gb", o.max_replicated_memory_gb);
+    f("image", o.image);
+    f("samples_per_pixel", o.samples_per_pixel);
+}
 
 // The diffusion model on hypre (solvers/diffusion).
 struct DiffusionOptions {
@@ -41,7 +70,24 @@ struct DiffusionOptions {
     // Empty: CG + BoomerAMG, and PETSc's global options (PETSC_OPTIONS) apply.
     std::string petsc_options;
     void validate() const;
+    bool operator==(const DiffusionOptions&) const = default;
 };
+
+// [model.diffusion]
+template <maybe_const<DiffusionOptions> O, class F>
+void for_each_option(O& o, F&& f) {
+    f("solver", o.solver);
+    f("tolerance", o.tolerance);
+    f("max_iterations", o.max_iterations);
+    f("margin", o.margin);
+    f("max_transport_length", o.max_transport_length);
+    f("clamp_negative", o.clamp_negative);
+    f("delta_scaling", o.delta_scaling);
+    f("flux_limiter", o.flux_limiter);
+    f("limiter_iterations", o.limiter_iterations);
+    f("limiter_tolerance", o.limiter_tolerance);
+    f("petsc_options", o.petsc_options);
+}
 
 // Discrete ordinates (solvers/dom).
 struct DomOptions {
@@ -60,7 +106,27 @@ struct DomOptions {
     std::vector<std::string> reflective;  // specular domain faces: any of x-, x+, y-, y+, z-, z+
     std::string sky = "first-collision";  // first-collision | boundary (sky radiance enters at the faces)
     void validate() const;
+    bool operator==(const DomOptions&) const = default;
 };
+
+// [model.dom]
+template <maybe_const<DomOptions> O, class F>
+void for_each_option(O& o, F&& f) {
+    f("quadrature", o.quadrature);
+    f("order", o.order);
+    f("polar", o.polar);
+    f("azimuthal", o.azimuthal);
+    f("legendre_order", o.legendre_order);
+    f("delta_m", o.delta_m);
+    f("scheme", o.scheme);
+    f("iteration", o.iteration);
+    f("tolerance", o.tolerance);
+    f("max_iterations", o.max_iterations);
+    f("tile_rows", o.tile_rows);
+    f("octant_overlap", o.octant_overlap);
+    f("reflective", o.reflective);
+    f("sky", o.sky);
+}
 
 // Light propagation maps (solvers/lpm, Fattal 2009).
 struct LpmOptions {
@@ -73,13 +139,42 @@ struct LpmOptions {
     std::string tail = "diffusion";  // light left in U at the stop: none | geometric | diffusion
                                      // (solvers/lpm/tail.h)
     void validate() const;
+    bool operator==(const LpmOptions&) const = default;
 };
+
+// [model.lpm]
+template <maybe_const<LpmOptions> O, class F>
+void for_each_option(O& o, F&& f) {
+    f("p", o.p);
+    f("refinement", o.refinement);
+    f("k", o.k);
+    f("solution_bins", o.solution_bins);
+    f("iterations", o.iterations);
+    f("epsilon", o.epsilon);
+    f("tail", o.tail);
+}
 
 // Path-integral point-spread function (solvers/psf, Premoze 2004).
 struct PsfOptions {
     int levels = 0;              // pyramid levels (0 = as many as the grid allows)
     double step_growth = 1.0;    // view-ray sample spacing grows with the blur width by this factor
     void validate() const;
+    bool operator==(const PsfOptions&) const = default;
 };
+
+// [model.psf]
+template <maybe_const<PsfOptions> O, class F>
+void for_each_option(O& o, F&& f) {
+    f("levels", o.levels);
+    f("step_growth", o.step_growth);
+}
+
+// The keys for_each_option visits, in order: the known keys of the [model.<name>] table.
+template <class Options>
+std::vector<std::string> option_keys(const Options& o) {
+    std::vector<std::string> keys;
+    for_each_option(o, [&](const char* key, const auto&) { keys.emplace_back(key); });
+    return keys;
+}
 
 }  // namespace nimbus
