@@ -2,7 +2,8 @@
 # Diffusion model benchmark (jobs/bench/bench_diffusion.cpp) at 1 and 2 ranks.
 #   jobs/bench_diffusion.sh [build-dir] [N ...]      e.g. jobs/bench_diffusion.sh build 64 128
 # Prints one markdown table per (N, ranks). SOLVERS="pfmg-pcg smg-pcg" limits the solvers;
-# BENCH_MEDIUM=smooth runs the cumulus without edge noise.
+# BENCH_MEDIUM=smooth runs the cumulus without edge noise; BENCH_REPS=3 prints medians of 3 runs
+# (bare and solvers alternating).
 set -euo pipefail
 BUILD=${1:-build}
 shift || true

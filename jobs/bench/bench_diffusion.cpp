@@ -7,7 +7,10 @@
 // bare hypre PFMG-PCG solve of the same matrix and right-hand side with the model's PFMG
 // settings (setup + solve only, no residual check): the floor the model is measured against. Domain 1.28 km, sigma_t 0.05/m,
 // a = 0.9, g = 0.85, sun along (0.3, 0.2, -1); tolerance 1e-8 (true relative residual).
-// A warm-up solve runs first (the first hypre setup pays for paging memory in).
+// A warm-up solve runs first (the first hypre setup pays for paging memory in). BENCH_REPS
+// (default 1) repeats the sequence bare, then every solver, and prints medians: a run's setup
+// depends on what the run before it left in the heap (at 192³ the first model setup after the
+// bare solve took 0.145 s, the next ones 0.06 s, as the bare one), so single runs are noisy.
 // Prints a markdown table on rank 0; times are the max over ranks.
 #include <mpi.h>
 
@@ -31,6 +34,11 @@
 namespace {
 
 using namespace nimbus;
+
+double median(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v.empty() ? 0.0 : v[(v.size() - 1) / 2];
+}
 
 double max_over_ranks(double v, MPI_Comm comm) {
     double g = 0;
@@ -131,39 +139,63 @@ int main(int argc, char** argv) {
         }
         const auto groups = diffusion::group_bands(m.bands, diffusion::term_strengths(lights, {}, m.nbands()));
         const auto problem = diffusion::make_problem(d, m, light, {}, groups[0]);
-        const Bare bare = bare_pfmg_pcg(d, problem);
-        const double floor = bare.setup + bare.solve;
+        const char* reps_env = std::getenv("BENCH_REPS");
+        const int reps = std::max(1, reps_env ? std::atoi(reps_env) : 1);
+        // Per repetition: the bare solve, then each solver's phase (times: max over ranks).
+        struct Times {
+            std::vector<double> assemble, setup, solve, total;
+            int iterations = 0, region = 0;
+            double residual = 0.0;
+            std::string failure;
+        };
+        std::vector<double> bare_setup, bare_solve;
+        int bare_iterations = 0;
+        std::vector<Times> times(solvers.size());
+        for (int r = 0; r < reps; ++r) {
+            const Bare bare = bare_pfmg_pcg(d, problem);
+            bare_setup.push_back(bare.setup);
+            bare_solve.push_back(bare.solve);
+            bare_iterations = bare.iterations;
+            for (size_t q = 0; q < solvers.size(); ++q) {
+                Report report;
+                Times& t = times[q];
+                try {
+                    run(solvers[q], report);
+                } catch (const Error& e) {
+                    t.failure = e.what();
+                }
+                t.total.push_back(max_over_ranks(report.time("diffusion"), d.comm()));
+                t.assemble.push_back(max_over_ranks(report.time("diffusion/assemble"), d.comm()));
+                t.setup.push_back(max_over_ranks(report.time("diffusion/setup"), d.comm()));
+                t.solve.push_back(max_over_ranks(report.time("diffusion/solve"), d.comm()));
+                if (t.failure.empty()) {
+                    const auto& v = report.values()["diffusion"];
+                    t.iterations = v["systems"][0]["iterations"].get<int>();
+                    t.residual = v["systems"][0]["true_residual"].get<double>();
+                    t.region = static_cast<int>(v["region"]["cells"].get<std::int64_t>());
+                }
+            }
+        }
+        const double floor = median(bare_setup) + median(bare_solve);
         if (rank == 0) {
-            std::printf("\n### diffusion, %s %d³, %d rank(s), tolerance 1e-8\n\n", medium.c_str(), N, size);
+            std::printf("\n### diffusion, %s %d³, %d rank(s), tolerance 1e-8, medians of %d\n\n", medium.c_str(), N,
+                        size, reps);
             std::printf("| N | ranks | solver | region cells | iterations | true residual | assemble s | setup s | solve s | (assemble + setup + solve) / bare | diffusion phase s | / bare |\n");
             std::printf("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
             std::printf("| %d | %d | bare hypre PFMG-PCG | | %d | | | %.3f | %.3f | 1.00 | %.3f | 1.00 |\n", N,
-                        size, bare.iterations, bare.setup, bare.solve, floor);
-        }
-        for (const auto& solver : solvers) {
-            Report report;
-            std::string failure;
-            try {
-                run(solver, report);
-            } catch (const Error& e) {
-                failure = e.what();
+                        size, bare_iterations, median(bare_setup), median(bare_solve), floor);
+            for (size_t q = 0; q < solvers.size(); ++q) {
+                const Times& t = times[q];
+                if (!t.failure.empty()) {
+                    std::printf("| %d | %d | %s | | failed: %.80s | | | | | | | |\n", N, size, solvers[q].c_str(),
+                                t.failure.c_str());
+                    continue;
+                }
+                const double as = median(t.assemble), su = median(t.setup), so = median(t.solve), total = median(t.total);
+                std::printf("| %d | %d | %s | %d | %d | %.1e | %.3f | %.3f | %.3f | %.2f | %.3f | %.2f |\n", N, size,
+                            solvers[q].c_str(), t.region, t.iterations, t.residual, as, su, so, (as + su + so) / floor,
+                            total, total / floor);
             }
-            const auto& v = report.values()["diffusion"];
-            const double total = max_over_ranks(report.time("diffusion"), d.comm());
-            const double as = max_over_ranks(report.time("diffusion/assemble"), d.comm());
-            const double su = max_over_ranks(report.time("diffusion/setup"), d.comm());
-            const double so = max_over_ranks(report.time("diffusion/solve"), d.comm());
-            if (rank != 0) continue;
-            if (!failure.empty()) {
-                std::printf("| %d | %d | %s | | failed: %.80s | | | | | | | |\n", N, size, solver.c_str(),
-                            failure.c_str());
-                continue;
-            }
-            const auto& sys = v["systems"][0];
-            std::printf("| %d | %d | %s | %lld | %d | %.1e | %.3f | %.3f | %.3f | %.2f | %.3f | %.2f |\n", N,
-                        size, solver.c_str(), static_cast<long long>(v["region"]["cells"].get<std::int64_t>()),
-                        sys["iterations"].get<int>(), sys["true_residual"].get<double>(), as, su, so,
-                        (as + su + so) / floor, total, total / floor);
         }
     } catch (const std::exception& e) {
         if (rank == 0) std::fprintf(stderr, "bench_diffusion: %s\n", e.what());
