@@ -143,7 +143,7 @@ int main(int argc, char** argv) {
         const int reps = std::max(1, reps_env ? std::atoi(reps_env) : 1);
         // Per repetition: the bare solve, then each solver's phase (times: max over ranks).
         struct Times {
-            std::vector<double> assemble, setup, solve, total;
+            std::vector<double> assemble, setup, solve, total, sources, region_time, flux, bands;
             int iterations = 0, region = 0;
             double residual = 0.0;
             std::string failure;
@@ -168,6 +168,10 @@ int main(int argc, char** argv) {
                 t.assemble.push_back(max_over_ranks(report.time("diffusion/assemble"), d.comm()));
                 t.setup.push_back(max_over_ranks(report.time("diffusion/setup"), d.comm()));
                 t.solve.push_back(max_over_ranks(report.time("diffusion/solve"), d.comm()));
+                t.sources.push_back(max_over_ranks(report.time("diffusion/sources"), d.comm()));
+                t.region_time.push_back(max_over_ranks(report.time("diffusion/region"), d.comm()));
+                t.flux.push_back(max_over_ranks(report.time("diffusion/flux"), d.comm()));
+                t.bands.push_back(max_over_ranks(report.time("diffusion/bands"), d.comm()));
                 if (t.failure.empty()) {
                     const auto& v = report.values()["diffusion"];
                     t.iterations = v["systems"][0]["iterations"].get<int>();
@@ -180,21 +184,22 @@ int main(int argc, char** argv) {
         if (rank == 0) {
             std::printf("\n### diffusion, %s %d³, %d rank(s), tolerance 1e-8, medians of %d\n\n", medium.c_str(), N,
                         size, reps);
-            std::printf("| N | ranks | solver | region cells | iterations | true residual | assemble s | setup s | solve s | (assemble + setup + solve) / bare | diffusion phase s | / bare |\n");
-            std::printf("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
-            std::printf("| %d | %d | bare hypre PFMG-PCG | | %d | | | %.3f | %.3f | 1.00 | %.3f | 1.00 |\n", N,
+            std::printf("| N | ranks | solver | region cells | iterations | true residual | assemble s | setup s | solve s | (assemble + setup + solve) / bare | diffusion phase s | / bare | sources / region / flux / bands s |\n");
+            std::printf("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
+            std::printf("| %d | %d | bare hypre PFMG-PCG | | %d | | | %.3f | %.3f | 1.00 | %.3f | 1.00 | |\n", N,
                         size, bare_iterations, median(bare_setup), median(bare_solve), floor);
             for (size_t q = 0; q < solvers.size(); ++q) {
                 const Times& t = times[q];
                 if (!t.failure.empty()) {
-                    std::printf("| %d | %d | %s | | failed: %.80s | | | | | | | |\n", N, size, solvers[q].c_str(),
+                    std::printf("| %d | %d | %s | | failed: %.80s | | | | | | | | |\n", N, size, solvers[q].c_str(),
                                 t.failure.c_str());
                     continue;
                 }
                 const double as = median(t.assemble), su = median(t.setup), so = median(t.solve), total = median(t.total);
-                std::printf("| %d | %d | %s | %d | %d | %.1e | %.3f | %.3f | %.3f | %.2f | %.3f | %.2f |\n", N, size,
+                std::printf("| %d | %d | %s | %d | %d | %.1e | %.3f | %.3f | %.3f | %.2f | %.3f | %.2f | %.3f / %.3f / %.3f / %.3f |\n", N, size,
                             solvers[q].c_str(), t.region, t.iterations, t.residual, as, su, so, (as + su + so) / floor,
-                            total, total / floor);
+                            total, total / floor, median(t.sources), median(t.region_time), median(t.flux),
+                            median(t.bands));
             }
         }
     } catch (const std::exception& e) {

@@ -4,12 +4,6 @@
 
 namespace nimbus::diffusion {
 
-double Assembler::G_eff(int r, int i, int j, int k, int axis) const {
-    const double kt = p_.kappa_tr(i, j, k);
-    const double g = p_.G[static_cast<size_t>(r)](i, j, k, axis);
-    return kt >= kappa_floor_ ? g : g * kt / kappa_floor_;
-}
-
 FaceInput Assembler::neighbor(int r, int axis, int s, const Int3& c, Int3& nb, bool& skip) const {
     nb = c;
     nb[axis] += s;

@@ -38,8 +38,12 @@ public:
     Vec3 flux(int r, const Field<double>& U, int i, int j, int k) const;
 
 private:
-    // G consistent with the capped kappa_tr: Q1 / max(kappa_tr, floor).
-    double G_eff(int r, int i, int j, int k, int axis) const;
+    // G consistent with the capped kappa_tr: Q1 / max(kappa_tr, floor). Inline: called per face.
+    double G_eff(int r, int i, int j, int k, int axis) const {
+        const double kt = p_.kappa_tr(i, j, k);
+        const double g = p_.G[static_cast<size_t>(r)](i, j, k, axis);
+        return kt >= kappa_floor_ ? g : g * kt / kappa_floor_;
+    }
     // The neighbour across face (axis, s) of cell c; skip = periodic axis of length 1 (the
     // face couples the cell to itself and carries nothing).
     FaceInput neighbor(int r, int axis, int s, const Int3& c, Int3& nb, bool& skip) const;

@@ -58,9 +58,16 @@ public:
             ScopedTimer bands_timer(ctx.report, "bands");  // each band's fields from the solutions and the forward peak
             const std::vector<DirectionalLight>& L = ctx.light.lights;
             std::vector<double> dT(L.size(), 0.0);  // T' - T per light at the cell, shared by the group's bands
+            // The solutions are zero outside the solve region (its cells are empty), so a cell
+            // there whose forward peak is zero too keeps the fields' initial 0.
+            const Box& region = res.region.box;
             for_each_cell(out.fluence[0].allocated(), [&](int i, int j, int k) {  // owned + ghosts
-                const bool peak_on =
+                bool peak_on =
                     diffusion::forward_peak_transmittance(ctx.light, group.optics, opt_.delta_scaling, i, j, k, dT.data());
+                if (!region.contains(i, j, k)) {
+                    peak_on = peak_on && std::any_of(dT.begin(), dT.end(), [](double v) { return v != 0.0; });
+                    if (!peak_on) return;
+                }
                 for (const auto& use : group.bands) {
                     double peak = 0.0;
                     Vec3 peak_flux;

@@ -1,5 +1,6 @@
 #include "solvers/diffusion/sources.h"
 
+#include <cmath>
 #include <numbers>
 #include <vector>
 
@@ -62,8 +63,10 @@ bool forward_peak_transmittance(const LightTransport& light, const BandOptics& o
     const DeltaScaledOptics s = delta_scale(optics.sigma_t, optics.albedo, optics.g, delta_scaling);
     if (!(s.f > 0.0)) return false;
     for (size_t l = 0; l < light.lights.size(); ++l) {
-        const int li = static_cast<int>(l);
-        dT[l] = light.transmittance(li, s.sigma_t, i, j, k) - light.transmittance(li, optics.sigma_t, i, j, k);
+        // T' - T = e^{-sigma_t' tau} - e^{-sigma_t tau}; exactly 0 where the light is unattenuated
+        // (tau = 0: above and beside the medium), which spares both exps in most empty cells.
+        const double tau = light.tau_rho[l](i, j, k);
+        dT[l] = tau == 0.0 ? 0.0 : std::exp(-s.sigma_t * tau) - std::exp(-optics.sigma_t * tau);
     }
     return true;
 }
