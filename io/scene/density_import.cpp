@@ -196,4 +196,17 @@ void read_density(const MediumSpec& spec, const Decomposition& d, Field<double>&
     }
 }
 
+Medium load_medium(const Scene& scene, const Decomposition& d) {
+    Medium m;
+    m.grid = make_grid(scene.grid);
+    m.bands = scene.bands;
+    m.rho = Field<double>(d.local(), 1, 1, 0.0);
+    if (scene.medium.kind == MediumSpec::Kind::hdf5 || scene.medium.kind == MediumSpec::Kind::raw)
+        read_density(scene.medium, d, m.rho);
+    else
+        fill_procedural_density(scene.medium, d, m.rho);
+    check_density(m.rho, d);
+    return m;
+}
+
 }  // namespace nimbus

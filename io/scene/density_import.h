@@ -1,9 +1,11 @@
 // Density from files: an HDF5 dataset of shape [nz][ny][nx] (any floating type), or a raw file
 // of nx*ny*nz little-endian float32 values, x fastest. Each rank reads only its own box.
+// load_medium builds a scene's whole Medium from whichever density source it names.
 #pragma once
 
 #include "src/core/decomposition.h"
 #include "src/core/field.h"
+#include "src/scene/medium.h"
 #include "src/scene/scene.h"
 
 namespace nimbus {
@@ -12,5 +14,10 @@ namespace nimbus {
 // the domain 0), scaled by spec.density. Throws Error on every rank for a missing file, a
 // missing dataset, or a wrong size (the message gives expected and found sizes).
 void read_density(const MediumSpec& spec, const Decomposition& d, Field<double>& rho);
+
+// The scene's medium on d: its grid, its bands and the density on the rank's box + 1 ghost layer
+// (procedural, or read_density for an hdf5/raw medium), checked by check_density (finite, >= 0).
+// Collective over d.comm(); throws the same Error on every rank.
+Medium load_medium(const Scene& scene, const Decomposition& d);
 
 }  // namespace nimbus

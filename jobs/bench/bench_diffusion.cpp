@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "jobs/bench/bench_support.h"
 #include "solvers/diffusion/assemble.h"
 #include "solvers/diffusion/band_groups.h"
 #include "solvers/diffusion/diffusion.h"
@@ -34,17 +35,8 @@
 namespace {
 
 using namespace nimbus;
-
-double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v.empty() ? 0.0 : v[(v.size() - 1) / 2];
-}
-
-double max_over_ranks(double v, MPI_Comm comm) {
-    double g = 0;
-    MPI_Allreduce(&v, &g, 1, MPI_DOUBLE, MPI_MAX, comm);
-    return g;
-}
+using bench::max_over_ranks;
+using bench::median;
 
 struct Bare {
     int iterations = 0;

@@ -19,6 +19,7 @@
 #include <cstdlib>
 #include <string>
 
+#include "jobs/bench/bench_support.h"
 #include "solvers/dom/angular_set.h"
 #include "solvers/dom/band_problem.h"
 #include "solvers/dom/iteration.h"
@@ -29,11 +30,7 @@
 namespace {
 
 using namespace nimbus;
-
-double max_over_ranks(double v, MPI_Comm comm) {
-    MPI_Allreduce(MPI_IN_PLACE, &v, 1, MPI_DOUBLE, MPI_MAX, comm);
-    return v;
-}
+using bench::max_over_ranks;
 
 int run(int argc, char** argv) {
     const int n = argc > 1 ? std::atoi(argv[1]) : 32;

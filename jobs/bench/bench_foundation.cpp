@@ -9,18 +9,15 @@
 #include <cstdlib>
 #include <vector>
 
-#include "io/scene/scene_toml.h"
+#include "io/scene/density_import.h"
+#include "jobs/bench/bench_support.h"
 #include "solvers/light/sun_transmittance.h"
 #include "src/core/log.h"
 #include "src/model/model.h"
 #include "src/render/raycaster.h"
 
 using namespace nimbus;
-
-static double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v[v.size() / 2];
-}
+using bench::median;
 
 int main(int argc, char** argv) {
     MPI_Init(&argc, &argv);
@@ -32,15 +29,9 @@ int main(int argc, char** argv) {
     const int W = argc > 2 ? std::atoi(argv[2]) : 1920, H = argc > 3 ? std::atoi(argv[3]) : 1080;
     const int repeats = argc > 4 ? std::atoi(argv[4]) : 3;
 
-    Scene scene = default_scene({fmt::format("grid.n=[{},{},{}]", N, N, N),
-                                 fmt::format("grid.cell_size={}", 25.0 * 96 / N),
-                                 fmt::format("camera.resolution=[{},{}]", W, H)});
+    Scene scene = bench::default_cloud_scene(N, {fmt::format("camera.resolution=[{},{}]", W, H)});
     const Decomposition d(MPI_COMM_WORLD, scene.grid.n);
-    Medium medium;
-    medium.grid = make_grid(scene.grid);
-    medium.bands = scene.bands;
-    medium.rho = Field<double>(d.local(), 1, 1, 0.0);
-    fill_procedural_density(scene.medium, d, medium.rho);
+    const Medium medium = load_medium(scene, d);
     const auto lights = make_lights(scene);
 
     std::vector<double> t_light, t_render;

@@ -13,23 +13,20 @@
 #include <ctime>
 #include <vector>
 
-#include "io/scene/scene_toml.h"
+#include "io/scene/density_import.h"
+#include "jobs/bench/bench_support.h"
 #include "solvers/light/sun_transmittance.h"
 #include "solvers/lpm/solve_band.h"
 #include "src/core/log.h"
 
 using namespace nimbus;
+using bench::median;
 
 // CPU seconds of this process (the machine may be shared: wall time then overstates).
 static double cpu_seconds() {
     timespec ts{};
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
     return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
-
-static double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v[v.size() / 2];
 }
 
 int main(int argc, char** argv) {
@@ -49,13 +46,10 @@ int main(int argc, char** argv) {
     o.tail = "none";  // the map sweeps alone (the P1 tail is timed by nimbus run: model/lpm/solve)
     o.validate();
 
-    Scene scene = default_scene({fmt::format("grid.n=[{},{},{}]", N, N, N), fmt::format("grid.cell_size={}", 25.0 * 96 / N)});
+    Scene scene = bench::default_cloud_scene(N);
     const Decomposition d(MPI_COMM_WORLD, scene.grid.n);
-    Medium medium;
-    medium.grid = make_grid(scene.grid);
-    medium.bands = {scene.bands[0]};
-    medium.rho = Field<double>(d.local(), 1, 1, 0.0);
-    fill_procedural_density(scene.medium, d, medium.rho);
+    Medium medium = load_medium(scene, d);
+    medium.bands.resize(1);  // one band
     const std::vector<DirectionalLight> sun{make_lights(scene)[0]};
     Report rep;
     const LightTransport lt = compute_light_transport(d, medium, sun, rep);

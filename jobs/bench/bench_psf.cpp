@@ -17,7 +17,8 @@
 #include <string>
 #include <vector>
 
-#include "io/scene/scene_toml.h"
+#include "io/scene/density_import.h"
+#include "jobs/bench/bench_support.h"
 #include "solvers/light/sun_transmittance.h"
 #include "solvers/psf/psf_source.h"
 #include "src/core/log.h"
@@ -25,20 +26,8 @@
 #include "src/render/raycaster.h"
 
 using namespace nimbus;
-
-static double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v[v.size() / 2];
-}
-
-template <class Fn>
-static double timed(Fn&& fn) {
-    MPI_Barrier(MPI_COMM_WORLD);
-    const double t0 = MPI_Wtime();
-    fn();
-    MPI_Barrier(MPI_COMM_WORLD);
-    return MPI_Wtime() - t0;
-}
+using bench::median;
+using bench::timed;
 
 int main(int argc, char** argv) {
     MPI_Init(&argc, &argv);
@@ -51,15 +40,9 @@ int main(int argc, char** argv) {
     const int repeats = argc > 4 ? std::atoi(argv[4]) : 3;
     const std::string only = argc > 5 ? argv[5] : "";
     {
-        Scene scene = default_scene({fmt::format("grid.n=[{},{},{}]", N, N, N),
-                                     fmt::format("grid.cell_size={}", 25.0 * 96 / N),
-                                     fmt::format("camera.resolution=[{},{}]", W, H)});
+        Scene scene = bench::default_cloud_scene(N, {fmt::format("camera.resolution=[{},{}]", W, H)});
         const Decomposition d(MPI_COMM_WORLD, scene.grid.n);
-        Medium medium;
-        medium.grid = make_grid(scene.grid);
-        medium.bands = scene.bands;
-        medium.rho = Field<double>(d.local(), 1, 1, 0.0);
-        fill_procedural_density(scene.medium, d, medium.rho);
+        const Medium medium = load_medium(scene, d);
         const auto lights = make_lights(scene);
         Report rep;
         const LightTransport lt = compute_light_transport(d, medium, lights, rep, {}, scene.light.method);

@@ -136,16 +136,9 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
     log_scene(scene, d, *model);
 
     Medium medium;
-    medium.grid = make_grid(scene.grid);
-    medium.bands = scene.bands;
-    medium.rho = Field<double>(d.local(), 1, 1, 0.0);
     {
         ScopedTimer t(report, "medium");
-        if (scene.medium.kind == MediumSpec::Kind::hdf5 || scene.medium.kind == MediumSpec::Kind::raw)
-            read_density(scene.medium, d, medium.rho);
-        else
-            fill_procedural_density(scene.medium, d, medium.rho);
-        check_density(medium.rho, d);
+        medium = load_medium(scene, d);
     }
     // What the model (and the sources) would refuse after the light pass, refused now.
     check_light_method(d, scene.light.method);

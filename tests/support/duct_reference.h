@@ -51,10 +51,7 @@ struct DuctWorld {
     explicit DuctWorld(MPI_Comm comm)
         : scene(load_scene_file(std::string(NIMBUS_SOURCE_DIR) + "/scenes/duct.toml")),
           d(comm, scene.grid.n, {0, 0, 0}, {false, false, false}) {
-        m.grid = make_grid(scene.grid);
-        m.bands = scene.bands;
-        m.rho = Field<double>(d.local(), 1, 1, 0.0);
-        read_density(scene.medium, d, m.rho);
+        m = load_medium(scene, d);
     }
     SolveContext ctx() { return {scene, d, m, light, report}; }
 };

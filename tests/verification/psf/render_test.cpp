@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <memory>
 
+#include "io/scene/density_import.h"
 #include "solvers/light/sun_transmittance.h"
 #include "solvers/psf/psf.h"
 #include "src/core/halo.h"
@@ -51,10 +52,7 @@ Scene base_scene() {
 World make_world(MPI_Comm comm, const Scene& s) {
     World w;
     w.d = std::make_unique<Decomposition>(comm, s.grid.n);
-    w.medium.grid = make_grid(s.grid);
-    w.medium.bands = s.bands;
-    w.medium.rho = Field<double>(w.d->local(), 1, 1, 0.0);
-    fill_procedural_density(s.medium, *w.d, w.medium.rho);
+    w.medium = load_medium(s, *w.d);
     return w;
 }
 
