@@ -1,6 +1,7 @@
 #include "solvers/montecarlo/batch_in_flight.h"
 
 #include <algorithm>
+#include <cmath>
 #include <utility>
 
 #include "solvers/montecarlo/trace_light.h"
@@ -38,7 +39,6 @@ void BatchInFlight::trace(int batch, int layout, std::int64_t k0, std::int64_t k
     auto offset = [steps](std::int64_t count, std::int64_t k) {  // count k / steps, exactly
         return count / steps * k + count % steps * k / steps;
     };
-    const int nb = p_.nb;
     const double h = p_.h;
     const size_t nl = p_.light_terms();
     for (size_t gi = 0; gi < p_.groups.size(); ++gi) {
@@ -47,6 +47,10 @@ void BatchInFlight::trace(int batch, int layout, std::int64_t k0, std::int64_t k
         const int* band = G.bands.data();
         const GridView grid = p_.voxels[gi].view(p_.periodic);
         const PhotonOptics po{G.optics.albedo, G.optics.g, opt_.roulette_weight};
+        // The open fold class: consecutive terms whose per-band scales are proportional (one
+        // colour, e.g. the sky's directions) share the voxel accumulators, each term's track
+        // scaled by its ratio alpha to the class's first term, and are folded once.
+        FoldClass fc;
         for (size_t l = 0; l < p_.terms(); ++l) {
             const std::int64_t N = p_.n_light[l];
             if (N == 0) continue;
@@ -81,31 +85,18 @@ void BatchInFlight::trace(int batch, int layout, std::int64_t k0, std::int64_t k
                     }
                 }
             if (to <= from) continue;
-            // Trace (w len accumulated per voxel), then fold the term's accumulators into the
-            // per-band batch tally (x P/h² per band) and zero them. A cell is listed in touched_
-            // when its tally of the term's strongest band is still 0 (every tallied segment adds
-            // a positive amount there; a repeated entry folds 0, harmlessly).
+            const double alpha = fc.open && !settings_.fold_by_colour ? 0.0 : fc.join(nbg, P, scale, strongest);
+            if (alpha == 0.0) {  // another colour: fold the class so far, start a new one
+                fold_class(fc, grid, band, nbg);
+                fc.join(nbg, P, scale, strongest);
+            }
+            // Trace (w len alpha accumulated per voxel); fold_class folds the accumulators.
             PathTally pt;
-            light_touched_.clear();
-            const LightTerm term{emitter ? nullptr : &p_.entry[l], emitter ? Vec3{0, 0, -1} : p_.lights[l].w, emitter,
-                                 static_cast<std::uint32_t>(l)};
+            LightTerm term{emitter ? nullptr : &p_.entry[l], emitter ? Vec3{0, 0, -1} : p_.lights[l].w, emitter,
+                           static_cast<std::uint32_t>(l)};
+            term.tally_scale = alpha == 0.0 ? 1.0 : alpha;
             trace_photons(grid, po, term, opt_.seed, from, to, settings_.forced_first_collision,
                           settings_.tally_reduced ? reduced_acc_.data() : nullptr, light_touched_, pt);
-            auto fold = [&](std::vector<double>& to_tally, std::int64_t idx, double track) {
-                double* c = to_tally.data() + idx * nb;
-                if (c[band[strongest]] == 0.0) touched_.push_back(idx);
-                for (int q = 0; q < nbg; ++q) c[band[q]] += track * scale[q];
-            };
-            double diffuse_track = 0.0;  // sum of w len (cells) after the first scattering
-            for_each_listed(light_touched_, [&](std::int64_t idx) {
-                const double v = std::exchange(grid.voxel[idx].tally, 0.0);
-                diffuse_track += v;
-                if (v != 0.0) fold(tally_, idx, v);
-                if (settings_.tally_reduced) {
-                    const double r = std::exchange(reduced_acc_[static_cast<size_t>(idx)], 0.0);
-                    if (r != 0.0) fold(rtally_, idx, r);
-                }
-            });
             if (gi == 0) photons_ += to - from;  // a photon traced once per optics group
             collisions_ += pt.collisions;
             segments_ += pt.segments;
@@ -115,10 +106,53 @@ void BatchInFlight::trace(int batch, int layout, std::int64_t k0, std::int64_t k
                 c[escaped_direct] += P[q] * pt.escaped_direct;
                 for (int f = 0; f < 6; ++f) c[escaped_xlo + f] += P[q] * pt.escaped_diffuse[f];
                 c[roulette_net] += P[q] * pt.roulette_net;
-                c[diffuse_volume] += P[q] * diffuse_track * h;
             }
         }
+        fold_class(fc, grid, band, nbg);
     }
+}
+
+double BatchInFlight::FoldClass::join(int nbg, const double* P_term, const double* scale_term, int strongest_term) {
+    if (!open) {
+        std::copy(P_term, P_term + nbg, P);
+        std::copy(scale_term, scale_term + nbg, scale);
+        strongest = strongest_term;
+        open = true;
+        return 1.0;
+    }
+    // Proportional to the class's scales to 1e-12 in every band (the sky's directions are one
+    // colour times a weight; the rounding of those products is far below this).
+    const double alpha = scale_term[strongest] / scale[strongest];
+    for (int q = 0; q < nbg; ++q)
+        if (!(std::abs(scale_term[q] - alpha * scale[q]) <= 1e-12 * scale_term[q])) return 0.0;
+    return alpha;
+}
+
+void BatchInFlight::fold_class(FoldClass& fc, const GridView& grid, const int* band, int nbg) {
+    if (!fc.open) return;
+    fc.open = false;
+    // Fold the class's accumulators into the per-band batch tally (x the class's P/h² per band)
+    // and zero them. A cell is listed in touched_ when its tally of the class's strongest band
+    // is still 0 (every tallied segment adds a positive amount there; a repeated entry folds 0,
+    // harmlessly).
+    const int nb = p_.nb;
+    auto fold = [&](std::vector<double>& to_tally, std::int64_t idx, double track) {
+        double* c = to_tally.data() + idx * nb;
+        if (c[band[fc.strongest]] == 0.0) touched_.push_back(idx);
+        for (int q = 0; q < nbg; ++q) c[band[q]] += track * fc.scale[q];
+    };
+    double diffuse_track = 0.0;  // sum of w len alpha (cells) after the first scattering
+    for_each_listed(light_touched_, [&](std::int64_t idx) {
+        const double v = std::exchange(grid.voxel[idx].tally, 0.0);
+        diffuse_track += v;
+        if (v != 0.0) fold(tally_, idx, v);
+        if (settings_.tally_reduced) {
+            const double r = std::exchange(reduced_acc_[static_cast<size_t>(idx)], 0.0);
+            if (r != 0.0) fold(rtally_, idx, r);
+        }
+    });
+    light_touched_.clear();
+    for (int q = 0; q < nbg; ++q) counters_[static_cast<size_t>(band[q])][diffuse_volume] += fc.P[q] * diffuse_track * p_.h;
 }
 
 void BatchInFlight::end(bool keep, KeptBatches& kept) {

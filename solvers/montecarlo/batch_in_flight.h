@@ -4,9 +4,10 @@
 // budget cut). Not collective; one per rank.
 //
 // Tallies cost O(cells touched), not O(grid): trace_photons (trace_light.h) lists the voxels
-// whose accumulator it lit; after each light term they are folded into the per-band batch
-// tally (x P/h² per band) and zeroed, and the cells of the batch tally are listed again for
-// end(). A list longer than 1/8 of the padded grid (ForwardSettings::fold_scan_fraction) is
+// whose accumulator it lit; after each run of consecutive light terms of one colour (the sky's
+// directions share one: each term's track is scaled by its power relative to the run's first
+// term) they are folded into the per-band batch tally (x P/h² per band) and zeroed, and the
+// cells of the batch tally are listed again for end(). A list longer than 1/8 of the padded grid (ForwardSettings::fold_scan_fraction) is
 // visited by scanning the grid instead,
 // which streams through memory where the list's scattered entries miss the cache; each cell's
 // fold is independent of the others', so both give bit-identical tallies (only the term's total
@@ -50,6 +51,17 @@ public:
     const std::vector<Counters>& counters() const { return counters_; }
 
 private:
+    // Consecutive light terms of one colour, traced into the voxel accumulators before one fold.
+    struct FoldClass {
+        bool open = false;
+        double P[64]{}, scale[64]{};  // the first term's photon power and fluence scale per band
+        int strongest = 0;
+        // Opens the class with this term (returns 1), or returns the term's scale ratio alpha to
+        // the open class when its scales are proportional, else 0 (the caller folds and reopens).
+        double join(int nbg, const double* P_term, const double* scale_term, int strongest_term);
+    };
+    void fold_class(FoldClass& fc, const GridView& grid, const int* band, int nbg);
+
     template <class Visit>
     void for_each_listed(const std::vector<std::int64_t>& list, Visit&& visit) const;
 

@@ -74,6 +74,9 @@ struct ForwardSettings {
     // Touched-cell lists longer than 1/fold_scan_fraction of the padded grid are folded by a
     // scan of the grid (batch_in_flight.h); 0: always by the list. Changes speed, not fields.
     std::int64_t fold_scan_fraction = 8;
+    // Consecutive light terms of one colour share the voxel accumulators and one fold
+    // (batch_in_flight.h); false: a fold per term. Changes speed and rounding, not the estimate.
+    bool fold_by_colour = true;
 };
 
 struct ForwardResult {

@@ -9,15 +9,16 @@ void trace_photons(const GridView& grid, const PhotonOptics& optics, const Light
                    std::int64_t lo, std::int64_t hi, bool forced_first_collision, double* reduced,
                    std::vector<std::int64_t>& lit, PathTally& out) {
     Voxel* const voxel = grid.voxel;
-    auto diffuse = [voxel, &lit, &out](std::int64_t idx, double wl) {
+    const double ts = term.tally_scale;  // 1 exactly for a term that starts its fold class
+    auto diffuse = [voxel, ts, &lit, &out](std::int64_t idx, double wl) {
         ++out.segments;
         double& a = voxel[idx].tally;
         if (a == 0.0) lit.push_back(idx);
-        a += wl;
+        a += wl * ts;
     };
-    auto uncollided = [reduced, &lit](std::int64_t idx, double track) {
+    auto uncollided = [reduced, ts, &lit](std::int64_t idx, double track) {
         if (reduced[idx] == 0.0) lit.push_back(idx);
-        reduced[idx] += track;
+        reduced[idx] += track * ts;
     };
     for (std::int64_t p = lo; p < hi; ++p) {
         PathRng rng(seed, term.stream, static_cast<std::uint64_t>(p));

@@ -2,8 +2,9 @@
 // source) in one batch, traced through the walked grid of one optics group (photon.h), their
 // diffuse track lengths accumulated in the grid's voxels (grid_walk.h, Voxel::tally).
 //
-// A path of weight w adds w len (cells) to Voxel::tally of every cell it crosses after its
-// first scattering (emitted photons: from their start); each cell whose tally was 0 before is
+// A path of weight w adds w len s (cells; s = LightTerm::tally_scale) to Voxel::tally of every
+// cell it crosses after its first scattering (emitted photons: from their start); the scale lets
+// terms of one colour share the accumulators (batch_in_flight.cpp). Each cell whose tally was 0 before is
 // appended to `lit`, so the caller can fold the accumulators into its per-band tallies and zero
 // them in O(cells touched). With `reduced` (verification only), the uncollided track goes to
 // reduced[idx] (cells listed in `lit` too; a cell may be listed twice, folding 0 the second time).
@@ -30,6 +31,7 @@ struct LightTerm {
     Vec3 w{0, 0, -1};
     const VolumeEmitter* emitter = nullptr;  // when set, entry and w are not used
     std::uint32_t stream = 0;                // Philox stream of the term (its index)
+    double tally_scale = 1.0;                // multiplies every tallied track (diffuse and reduced)
 };
 
 // Traces photons [lo, hi) of `term` with seed `seed`; out collects the energy bookkeeping.

@@ -408,6 +408,39 @@ TEST(Forward, FoldingByListOrByScanGivesTheSameFields) {
     for (int q = 0; q < ncounters; ++q) EXPECT_NEAR(a.counters[0][q], b.counters[0][q], 1e-12 * a.counters[0][incident]);
 }
 
+// Terms of one colour (here the two sky terms, proportional in both bands) are traced into the
+// same accumulators, each scaled by its power relative to the first, and folded once; the sun
+// and a third colour each fold apart. Folded per term instead, every photon and every collision
+// is the same, and the fields differ only by rounding.
+TEST(Forward, TermsOfOneColourFoldedTogetherGiveTheSameFields) {
+    const std::vector<DirectionalLight> L{{"sun", normalized(Vec3{0.2, 0.1, -1.0}), {0.7, 0.5}},
+                                          {"sky[0]", normalized(Vec3{0.3, -0.5, -0.6}), {0.4, 0.2}},
+                                          {"sky[1]", normalized(Vec3{-0.6, 0.2, -0.4}), {0.1, 0.05}},
+                                          {"lamp", normalized(Vec3{0.0, 0.6, -0.5}), {0.3, 0.6}}};
+    Slab slab(MPI_COMM_WORLD, 3.0, 0.95, 0.6, {8, 8, 12});
+    slab.m.bands.push_back(slab.m.bands[0]);
+    slab.m.bands[1].name = "gray2";
+    ForwardSettings together, apart;
+    apart.fold_by_colour = false;
+    together.tally_reduced = apart.tally_reduced = true;
+    const ForwardResult a = trace_forward(slab.d, slab.m, L, options(6000), together);
+    const ForwardResult b = trace_forward(slab.d, slab.m, L, options(6000), apart);
+    EXPECT_EQ(a.collisions, b.collisions);
+    for (int band = 0; band < 2; ++band) {
+        double peak = 0.0, worst = 0.0;
+        for_each_cell(slab.d.local(), [&](int i, int j, int k) { peak = std::max(peak, b.fluence[band](i, j, k)); });
+        for_each_cell(slab.d.local(), [&](int i, int j, int k) {
+            worst = std::max({worst, std::abs(a.fluence[band](i, j, k) - b.fluence[band](i, j, k)),
+                              std::abs(a.fluence_stderr[band](i, j, k) - b.fluence_stderr[band](i, j, k)),
+                              std::abs(a.reduced[band](i, j, k) - b.reduced[band](i, j, k))});
+        });
+        EXPECT_GT(peak, 0.0);
+        EXPECT_LT(worst, 1e-12 * peak) << "band " << band;
+        for (int q = 0; q < ncounters; ++q)
+            EXPECT_NEAR(a.counters[band][q], b.counters[band][q], 1e-12 * b.counters[band][incident]);
+    }
+}
+
 TEST(Forward, ReplicatedMemoryLimitIsACollectiveError) {
     Slab slab(MPI_COMM_WORLD, 1.0, 0.9, 0.0);
     MonteCarloOptions o = options(1000);
