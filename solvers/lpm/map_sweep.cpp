@@ -95,6 +95,7 @@ struct SlotLayout {
     bool per_u, per_v;  // periodic lateral axes: wrap
     bool nb_lo, nb_hi;  // a rank owns the slots beyond the low/high v edge
     size_t dir_size() const { return static_cast<size_t>(NvS + 2 * R) * NuS; }
+    size_t real_size() const { return static_cast<size_t>(NvS) * NuS; }  // real slots only
     size_t row(int qv) const { return static_cast<size_t>(qv + R) * NuS; }
 };
 
@@ -242,11 +243,8 @@ void fill_padded(const MapFrame& m, const Decomposition& d, const Field<double>&
         }
 }
 
-}  // namespace
-
-void sweep_map(const Decomposition& d, int face, const MapInputs& in, MapAccumulators& acc) {
-    const Angular& ang = *in.angular;
-    const int p = ang.p(), k2 = ang.k() * ang.k(), nm = ang.coarse_bins(), R = in.refinement;
+// The rank's part of the map of face f: axes, owned layers along the map axis, padded plane.
+MapFrame map_frame(const Decomposition& d, int face) {
     MapFrame m{};
     m.f = face;
     m.a = face_axis(face);
@@ -262,41 +260,13 @@ void sweep_map(const Decomposition& d, int face, const MapInputs& in, MapAccumul
     m.vhi = own.hi[m.va];
     m.Wu = m.nu + 2;
     m.Wv = m.vhi - m.vlo + 2;
-    const size_t plane = m.plane();
+    return m;
+}
+
+// The rank's slots of map m, R rays per cell: periodic lateral axes wrap; a ±X/±Y map hands
+// its rays to the z neighbours z_lo, z_hi (a ±Z map passes whole maps down the chain instead).
+SlotLayout slot_layout(const MapFrame& m, const Decomposition& d, int R, int z_lo, int z_hi) {
     const bool z_map = m.a == 2;
-
-    // Snapshot Ũ of this face's coarse bins (with the neighbours' z ghost planes); those bins
-    // of U are then emptied, and U's ghosts become deposit scratch.
-    Field<double>& U = *acc.U;
-    exchange_halo(U, d);
-    std::vector<double> K(plane * static_cast<size_t>(m.layers()));
-    std::vector<double> Us(K.size() * static_cast<size_t>(k2));
-    fill_padded(m, d, *in.kappa, 0, K.data());
-    for (int b = 0; b < k2; ++b) fill_padded(m, d, U, face * k2 + b, Us.data() + static_cast<size_t>(b) * K.size());
-    // Per padded row, the columns that hold every cell with kappa > 0 or Ũ > 0 in any of the
-    // face's coarse bins; outside them rays cross vacuum (advance_rays_vacuum).
-    std::vector<MediumSpan> span(static_cast<size_t>(m.layers()) * m.Wv);
-    for (size_t r = 0; r < span.size(); ++r) {
-        auto empty = [&](int col) {
-            if (K[r * m.Wu + col] != 0.0) return false;
-            for (int b = 0; b < k2; ++b)
-                if (Us[static_cast<size_t>(b) * K.size() + r * m.Wu + col] != 0.0) return false;
-            return true;
-        };
-        int lo = 0, hi = m.Wu;
-        while (lo < hi && empty(lo)) ++lo;
-        while (hi > lo && empty(hi - 1)) --hi;
-        span[r] = {lo, hi};
-    }
-    {
-        const Box& al = U.allocated();
-        for_each_cell(al, [&](int i, int j, int k) {
-            double* u = &U(i, j, k);
-            if (!own.contains(i, j, k)) std::fill(u, u + nm, 0.0);
-            else std::fill(u + face * k2, u + (face + 1) * k2, 0.0);
-        });
-    }
-
     SlotLayout sl{};
     sl.R = R;
     sl.NuS = m.nu * R;
@@ -304,257 +274,495 @@ void sweep_map(const Decomposition& d, int face, const MapInputs& in, MapAccumul
     sl.Wu = m.Wu;
     sl.per_u = m.ua != 2 && d.periodic(m.ua);
     sl.per_v = m.va != 2 && d.periodic(m.va);
-    const int z_lo = d.neighbor(2, -1), z_hi = d.neighbor(2, 1);
     sl.nb_lo = !z_map && z_lo != MPI_PROC_NULL;
     sl.nb_hi = !z_map && z_hi != MPI_PROC_NULL;
+    return sl;
+}
 
-    // Per map direction (local index 0..p²-1): tangents, path per step, weights.
-    const int nd = p * p;
-    std::vector<double> tu(static_cast<size_t>(nd)), tv(tu.size()), path(tu.size()), wn(tu.size()), ef(tu.size());
-    std::vector<double> D(static_cast<size_t>(nd * nm));
-    bool isotropic = true;
-    for (int l = 0; l < nd; ++l) {
-        const int n = face * nd + l;
-        tu[static_cast<size_t>(l)] = ang.tangent(l % p);
-        tv[static_cast<size_t>(l)] = ang.tangent(l / p);
-        const double wa = std::abs(ang.direction(n)[m.a]);
-        path[static_cast<size_t>(l)] = in.h / wa;
-        wn[static_cast<size_t>(l)] = ang.solid_angle(n) / (R * R);
-        ef[static_cast<size_t>(l)] = ang.solid_angle(n) * wa * in.h * in.h / (R * R);
-        for (int c = 0; c < nm; ++c) {
-            D[static_cast<size_t>(l * nm + c)] = (*in.deposit)[static_cast<size_t>(n * nm + c)];
-            if (D[static_cast<size_t>(l * nm + c)] != D[static_cast<size_t>(c)]) isotropic = false;
+// One sweep of one map on this rank (the body of sweep_map): the map's frame and slots, the
+// padded snapshots of kappa and Ũ with their medium spans, the per-direction tables, and the
+// path integrals φ of the current step. Construction only reads the inputs (no messages);
+// snapshot_and_clear and the sweeps are collective over d.comm().
+class MapSweep {
+  public:
+    MapSweep(const Decomposition& d, int face, const MapInputs& in, MapAccumulators& acc);
+
+    // Snapshot Ũ of this face's coarse bins (with the neighbours' z ghost planes); those bins
+    // of U are then emptied, and U's ghosts become deposit scratch.
+    void snapshot_and_clear();
+    bool z_map() const { return m_.a == 2; }
+    // ±Z: the map pipelined down (or up) the slab chain, one group of p directions at a time.
+    void sweep_z_chain();
+    // ±X/±Y: every slab at once, rays exchanged across the slab boundaries after each step;
+    // swept cyclically along a periodic map axis.
+    void sweep_lateral();
+    // After sweep_lateral: the deposits in the ghost layers are added to their owners.
+    void accumulate_ghosts();
+
+  private:
+    void direction_tables();
+    void deposit_columns();
+    bool vacuum(size_t at) const;
+    void find_medium_spans();
+    void clear_swept_bins();
+
+    int layer_of_step(long t) const;
+    long step_of_layer(int layer) const;
+    // Direction l's block of the ray maps M (A_ or B_).
+    double* rays(std::vector<double>& M, int l) const {
+        return M.data() + ds_ * static_cast<size_t>(l);
+    }
+    int run_direction(int l, long t, const double* A, double* B);
+    double map_power(int l, const double* A) const;
+
+    void deposit(int la, int l0, int l1);
+    void fold_periodic_pads(int l0, int l1);
+    void gather_row(int la, int pv, int l0, int l1, size_t c0);
+    void add_row(int la, int pv, size_t c0);
+
+    void sweep_z_group(int grp, sweep::ChainIO& io);
+    bool pass_ends_sweep(long t);
+    void exchange_crossing_rays();
+    void pack_crossing_rays();
+    void unpack_crossing_rays();
+
+    const Decomposition& d_;
+    const MapInputs& in_;
+    MapAccumulators& acc_;
+    const Angular& ang_;
+    Field<double>& U_;
+    const int face_, p_, k2_, nm_, R_;
+    const int nd_;  // map directions, p²
+    const MapFrame m_;
+    const size_t plane_;     // padded plane, Wu x Wv
+    const int z_lo_, z_hi_;  // z neighbours (MPI_PROC_NULL at the domain's z faces)
+    const SlotLayout sl_;
+    const size_t ds_;     // slots of one direction, sl_.dir_size()
+    const int far_side_;  // the face the map leaves through along its axis: 0 low, 1 high
+
+    // Padded planes per local layer: kappa [layer][Wv][Wu], Ũ [face bin][layer][Wv][Wu].
+    std::vector<double> K_, Us_;
+    std::vector<MediumSpan> span_;  // [layer][pv]
+
+    // Per map direction l (0..p²-1): tangents, path per step (m), fluence weight |Ω^n|/R²,
+    // power per unit radiance |Ω^n| |ω_a| h²/R², and D [l][m] = P^{n,m}/|Ω^m|.
+    std::vector<double> tu_, tv_, path_, wn_, ef_, D_;
+    bool isotropic_ = true;     // D's rows all equal
+    int nc_fluence_ = 1;        // deposit columns of the fluence (1) and flux (3)
+    int nc_ = 1;                // all columns: those, then D's row when anisotropic
+    std::vector<double> C_;     // deposit coefficients [l][nc]
+    std::vector<double> phi_;   // path integrals of the step, [l][plane]
+    std::vector<double> rows_;  // row sums over the directions, [nc][nu]
+
+    StepGeometry geo_;
+    std::vector<double> work_;
+    std::vector<double> A_, B_;  // rays at the start and end of a step, ds_ per direction
+    // ±X/±Y maps: each direction's slot shift along v in the step, the exchange buffers, and
+    // the map's power (all ranks) after its first pass.
+    std::vector<int> dSv_;
+    std::vector<double> to_hi_, to_lo_, from_lo_, from_hi_;
+    double first_pass_power_ = 0.0;
+};
+
+MapSweep::MapSweep(const Decomposition& d, int face, const MapInputs& in, MapAccumulators& acc)
+    : d_(d),
+      in_(in),
+      acc_(acc),
+      ang_(*in.angular),
+      U_(*acc.U),
+      face_(face),
+      p_(ang_.p()),
+      k2_(ang_.k() * ang_.k()),
+      nm_(ang_.coarse_bins()),
+      R_(in.refinement),
+      nd_(p_ * p_),
+      m_(map_frame(d, face)),
+      plane_(m_.plane()),
+      z_lo_(d.neighbor(2, -1)),
+      z_hi_(d.neighbor(2, 1)),
+      sl_(slot_layout(m_, d, R_, z_lo_, z_hi_)),
+      ds_(sl_.dir_size()),
+      far_side_(m_.s > 0 ? 1 : 0) {
+    direction_tables();
+    deposit_columns();
+    phi_.assign(plane_ * static_cast<size_t>(nd_), 0.0);
+    rows_.assign(static_cast<size_t>(nc_) * static_cast<size_t>(m_.nu), 0.0);
+}
+
+// Per map direction (local index 0..p²-1): tangents, path per step, weights.
+void MapSweep::direction_tables() {
+    const size_t nd = static_cast<size_t>(nd_);
+    for (std::vector<double>* v : {&tu_, &tv_, &path_, &wn_, &ef_}) v->assign(nd, 0.0);
+    D_.assign(static_cast<size_t>(nd_ * nm_), 0.0);
+    for (int l = 0; l < nd_; ++l) {
+        const int n = face_ * nd_ + l;
+        tu_[static_cast<size_t>(l)] = ang_.tangent(l % p_);
+        tv_[static_cast<size_t>(l)] = ang_.tangent(l / p_);
+        const double wa = std::abs(ang_.direction(n)[m_.a]);
+        path_[static_cast<size_t>(l)] = in_.h / wa;
+        wn_[static_cast<size_t>(l)] = ang_.solid_angle(n) / (R_ * R_);
+        ef_[static_cast<size_t>(l)] = ang_.solid_angle(n) * wa * in_.h * in_.h / (R_ * R_);
+        for (int c = 0; c < nm_; ++c) {
+            D_[static_cast<size_t>(l * nm_ + c)] = (*in_.deposit)[static_cast<size_t>(n * nm_ + c)];
+            if (D_[static_cast<size_t>(l * nm_ + c)] != D_[static_cast<size_t>(c)])
+                isotropic_ = false;
         }
     }
+}
 
-    // Deposit coefficients per direction (gather_kernel.h): [nd][nc], columns 1, ω̄^n (flux),
-    // P^{n,m}/|Ω^m| (anisotropic scattering).
-    const int nc_fluence = in.flux ? 4 : 1, nc = nc_fluence + (isotropic ? 0 : nm);
-    std::vector<double> C(static_cast<size_t>(nd * nc));
-    for (int l = 0; l < nd; ++l) {
-        double* c = C.data() + static_cast<size_t>(l * nc);
+// Deposit coefficients per direction (gather_kernel.h): [nd][nc], columns 1, ω̄^n (flux),
+// P^{n,m}/|Ω^m| (anisotropic scattering).
+void MapSweep::deposit_columns() {
+    nc_fluence_ = in_.flux ? 4 : 1;
+    nc_ = nc_fluence_ + (isotropic_ ? 0 : nm_);
+    C_.assign(static_cast<size_t>(nd_ * nc_), 0.0);
+    for (int l = 0; l < nd_; ++l) {
+        double* c = C_.data() + static_cast<size_t>(l * nc_);
         *c++ = 1.0;
-        if (in.flux)
-            for (int ax = 0; ax < 3; ++ax) *c++ = ang.mean_direction(face * nd + l)[ax];
-        if (!isotropic)
-            for (int mm = 0; mm < nm; ++mm) *c++ = D[static_cast<size_t>(l * nm + mm)];
+        if (in_.flux)
+            for (int ax = 0; ax < 3; ++ax) *c++ = ang_.mean_direction(face_ * nd_ + l)[ax];
+        if (!isotropic_)
+            for (int mm = 0; mm < nm_; ++mm) *c++ = D_[static_cast<size_t>(l * nm_ + mm)];
     }
-    std::vector<double> phi(plane * static_cast<size_t>(nd), 0.0);
-    std::vector<double> rows(static_cast<size_t>(nc) * static_cast<size_t>(m.nu));
-    const double* tot = rows.data();
-    const double* Fr = tot + (in.flux ? m.nu : 0);
-    const double* Sr = tot + (in.flux ? 4 : 1) * m.nu;
-    // Folds periodic pads, then deposits the step's path integrals of directions [l0, l1) in
-    // local layer la: fluence, flux and the scattered light into every coarse bin (eq. 5).
-    auto deposit = [&](int la, int l0, int l1) {
-        for (int l = l0; l < l1; ++l) {
-            double* ph = phi.data() + plane * static_cast<size_t>(l);
-            if (sl.per_u)
-                for (int pv = 0; pv < m.Wv; ++pv) {
-                    double* r = ph + static_cast<size_t>(pv) * m.Wu;
-                    r[m.nu] += r[0];
-                    r[1] += r[m.nu + 1];
-                    r[0] = r[m.nu + 1] = 0.0;
-                }
-            if (sl.per_v) {
-                const int nv = m.vhi - m.vlo;
-                for (int pu = 0; pu < m.Wu; ++pu) {
-                    ph[static_cast<size_t>(nv) * m.Wu + pu] += ph[pu];
-                    ph[static_cast<size_t>(m.Wu) + pu] += ph[static_cast<size_t>(nv + 1) * m.Wu + pu];
-                    ph[pu] = ph[static_cast<size_t>(nv + 1) * m.Wu + pu] = 0.0;
-                }
-            }
-        }
-        const double* Kl = K.data() + plane * static_cast<size_t>(la);
-        const size_t nu = static_cast<size_t>(m.nu);
-        for (int pv = 0; pv < m.Wv; ++pv) {
-            const bool ghost_row = pv == 0 || pv == m.Wv - 1;
-            const bool keep = !ghost_row || (pv == 0 ? sl.nb_lo : sl.nb_hi);
-            const size_t c0 = static_cast<size_t>(pv) * m.Wu + 1;
-            if (!keep) {
-                for (int l = l0; l < l1; ++l) std::fill_n(phi.data() + plane * static_cast<size_t>(l) + c0, nu, 0.0);
-                continue;
-            }
-            // Row sums over the directions: fluence, flux, and Σ_n P^{n,m}/|Ω^m| φ_n per bin m,
-            // the last only inside the row's medium span (nothing scatters in vacuum).
-            const MediumSpan& sp = span[static_cast<size_t>(la) * m.Wv + pv];
-            const int i_lo = std::clamp(sp.lo - 1, 0, m.nu), i_hi = std::clamp(sp.hi - 1, i_lo, m.nu);
-            auto gather = [&](int i0, int i1, int ncols) {
-                if (i1 > i0)
-                    gather_directions(i1 - i0, l1 - l0, phi.data() + plane * static_cast<size_t>(l0) + c0 + i0, plane,
-                                      C.data() + static_cast<size_t>(l0) * nc, nc, ncols, rows.data() + i0, nu);
-            };
-            gather(0, i_lo, nc_fluence);
-            gather(i_lo, i_hi, nc);
-            gather(i_hi, m.nu, nc_fluence);
-            // Row start in the fields and their strides along u.
-            const Int3 g = m.cell(la, pv, 1);
-            double* fl = &(*acc.fluence)(g[0], g[1], g[2]);
-            double* fx = in.flux ? &(*acc.flux)(g[0], g[1], g[2]) : nullptr;
-            double* u = &U(g[0], g[1], g[2]);
-            const std::ptrdiff_t s_fl = acc.fluence->stride(m.ua), s_u = U.stride(m.ua);
-            const std::ptrdiff_t s_fx = in.flux ? acc.flux->stride(m.ua) : 0;
-            for (size_t i = 0; i < nu; ++i, fl += s_fl, u += s_u, fx += s_fx) {
-                if (tot[i] == 0.0) continue;
-                *fl += tot[i];
-                if (in.flux)
-                    for (int ax = 0; ax < 3; ++ax) fx[ax] += Fr[static_cast<size_t>(ax) * nu + i];
-                const double sigma_s = in.albedo * Kl[c0 + i];
-                if (sigma_s == 0.0) continue;
-                if (isotropic)
-                    for (int mm = 0; mm < nm; ++mm) u[mm] += sigma_s * D[static_cast<size_t>(mm)] * tot[i];
-                else
-                    for (int mm = 0; mm < nm; ++mm) u[mm] += sigma_s * Sr[static_cast<size_t>(mm) * nu + i];
-            }
-        }
-    };
+}
 
-    StepGeometry geo;
-    std::vector<double> work;
-    auto layer_of_step = [&](long t) { return m.s > 0 ? static_cast<int>(t) : m.n[m.a] - 1 - static_cast<int>(t); };
-    auto step_of_layer = [&](int layer) { return static_cast<long>(m.s > 0 ? layer : m.n[m.a] - 1 - layer); };
-    auto run_direction = [&](int l, long t, const double* A, double* B) {
-        const int la = layer_of_step(t % m.n[m.a]) - m.alo;
-        step_geometry(tu[static_cast<size_t>(l)], tv[static_cast<size_t>(l)], t, R, path[static_cast<size_t>(l)],
-                      wn[static_cast<size_t>(l)], m.Wu, geo);
-        const int mb = ang.coarse_of(face * nd + l) - face * k2;
-        Escapes esc;
-        transport_step(geo, tu[static_cast<size_t>(l)], tv[static_cast<size_t>(l)], sl,
-                       span.data() + static_cast<size_t>(la) * m.Wv, K.data() + plane * static_cast<size_t>(la),
-                       Us.data() + K.size() * static_cast<size_t>(mb) + plane * static_cast<size_t>(la),
-                       phi.data() + plane * static_cast<size_t>(l), A, B, esc, work);
-        const double e = ef[static_cast<size_t>(l)];
-        for (int side = 0; side < 2; ++side) {
-            acc.escaped[m.ua][side] += esc.u[side] * e;
-            acc.escaped[m.va][side] += esc.v[side] * e;
-        }
-    };
-    const size_t ds = sl.dir_size();
-    // Power still carried by the map (this rank's slots), W.
-    auto map_power = [&](int l, const double* A) {
-        double sum = 0.0;
-        for (int qv = 0; qv < sl.NvS; ++qv)
-            for (int qu = 0; qu < sl.NuS; ++qu) sum += A[sl.row(qv) + static_cast<size_t>(qu)];
-        return sum * ef[static_cast<size_t>(l)];
-    };
-    const int far_side = m.s > 0 ? 1 : 0;
+void MapSweep::snapshot_and_clear() {
+    exchange_halo(U_, d_);
+    K_.assign(plane_ * static_cast<size_t>(m_.layers()), 0.0);
+    Us_.assign(K_.size() * static_cast<size_t>(k2_), 0.0);
+    fill_padded(m_, d_, *in_.kappa, 0, K_.data());
+    for (int b = 0; b < k2_; ++b)
+        fill_padded(m_, d_, U_, face_ * k2_ + b, Us_.data() + static_cast<size_t>(b) * K_.size());
+    find_medium_spans();
+    clear_swept_bins();
+}
 
-    if (z_map) {
-        // Pipelined down (or up) the slab chain, one group of p directions at a time
-        // (solvers/sweep/chain.h): group grp's message is its p maps' rays leaving the slab.
-        const size_t real = static_cast<size_t>(sl.NvS) * sl.NuS;
-        std::vector<double> A(ds * static_cast<size_t>(p)), B(A.size());
-        const long t_first = m.s > 0 ? step_of_layer(m.alo) : step_of_layer(m.ahi - 1);
-        sweep::ChainGroups groups;
-        groups.size.assign(static_cast<size_t>(p), real * static_cast<size_t>(p));
-        const sweep::ChainStats chain = sweep::pass_down(d, m.s, groups, [&](int grp, sweep::ChainIO& io) {
-            std::fill(A.begin(), A.end(), 0.0);
-            std::fill(B.begin(), B.end(), 0.0);
-            const std::span<const double> entering = io.in();
-            if (!entering.empty())
-                for (int l = 0; l < p; ++l)
-                    std::copy(entering.begin() + static_cast<std::ptrdiff_t>(real * l),
-                              entering.begin() + static_cast<std::ptrdiff_t>(real * (l + 1)),
-                              A.begin() + static_cast<std::ptrdiff_t>(ds * l + sl.row(0)));
-            for (long t = t_first; t < t_first + m.layers(); ++t) {
-                for (int l = 0; l < p; ++l)
-                    run_direction(grp * p + l, t, A.data() + ds * static_cast<size_t>(l), B.data() + ds * static_cast<size_t>(l));
-                deposit(layer_of_step(t) - m.alo, grp * p, grp * p + p);
-                std::swap(A, B);
+// kappa = 0 and Ũ = 0 in every coarse bin of the face at padded index `at`.
+bool MapSweep::vacuum(size_t at) const {
+    if (K_[at] != 0.0) return false;
+    for (int b = 0; b < k2_; ++b)
+        if (Us_[static_cast<size_t>(b) * K_.size() + at] != 0.0) return false;
+    return true;
+}
+
+// Per padded row, the columns that hold every cell with kappa > 0 or Ũ > 0 in any of the
+// face's coarse bins; outside them rays cross vacuum (advance_rays_vacuum).
+void MapSweep::find_medium_spans() {
+    span_.assign(static_cast<size_t>(m_.layers()) * m_.Wv, MediumSpan{});
+    for (size_t r = 0; r < span_.size(); ++r) {
+        const size_t row = r * m_.Wu;
+        int lo = 0, hi = m_.Wu;
+        while (lo < hi && vacuum(row + lo)) ++lo;
+        while (hi > lo && vacuum(row + hi - 1)) --hi;
+        span_[r] = {lo, hi};
+    }
+}
+
+// Empties the face's coarse bins of U in the owned cells and every bin in the ghost cells.
+void MapSweep::clear_swept_bins() {
+    const Box& own = d_.local();
+    for_each_cell(U_.allocated(), [&](int i, int j, int k) {
+        double* u = &U_(i, j, k);
+        if (!own.contains(i, j, k)) {
+            std::fill(u, u + nm_, 0.0);
+        } else {
+            std::fill(u + face_ * k2_, u + (face_ + 1) * k2_, 0.0);
+        }
+    });
+}
+
+// Global layer along the map axis that step t of a pass crosses, and the inverse.
+int MapSweep::layer_of_step(long t) const {
+    return m_.s > 0 ? static_cast<int>(t) : m_.n[m_.a] - 1 - static_cast<int>(t);
+}
+long MapSweep::step_of_layer(int layer) const {
+    return static_cast<long>(m_.s > 0 ? layer : m_.n[m_.a] - 1 - layer);
+}
+
+// Step t of direction l: every ray of map A crosses one layer (eq. 4) into map B, its path
+// integrals accumulated into φ_l; the light leaving the domain sideways is counted as escaped.
+// Returns the step's slot shift along v.
+int MapSweep::run_direction(int l, long t, const double* A, double* B) {
+    const int la = layer_of_step(t % m_.n[m_.a]) - m_.alo;
+    const size_t i = static_cast<size_t>(l);
+    step_geometry(tu_[i], tv_[i], t, R_, path_[i], wn_[i], m_.Wu, geo_);
+    const int mb = ang_.coarse_of(face_ * nd_ + l) - face_ * k2_;
+    Escapes esc;
+    transport_step(
+        geo_, tu_[i], tv_[i], sl_, span_.data() + static_cast<size_t>(la) * m_.Wv,
+        K_.data() + plane_ * static_cast<size_t>(la),
+        Us_.data() + K_.size() * static_cast<size_t>(mb) + plane_ * static_cast<size_t>(la),
+        phi_.data() + plane_ * i, A, B, esc, work_);
+    const double e = ef_[i];
+    for (int side = 0; side < 2; ++side) {
+        acc_.escaped[m_.ua][side] += esc.u[side] * e;
+        acc_.escaped[m_.va][side] += esc.v[side] * e;
+    }
+    return geo_.dSv;
+}
+
+// Power still carried by direction l's map A (this rank's slots), W.
+double MapSweep::map_power(int l, const double* A) const {
+    double sum = 0.0;
+    for (int qv = 0; qv < sl_.NvS; ++qv)
+        for (int qu = 0; qu < sl_.NuS; ++qu) sum += A[sl_.row(qv) + static_cast<size_t>(qu)];
+    return sum * ef_[static_cast<size_t>(l)];
+}
+
+// Folds periodic pads, then deposits the step's path integrals of directions [l0, l1) in
+// local layer la: fluence, flux and the scattered light into every coarse bin (eq. 5).
+void MapSweep::deposit(int la, int l0, int l1) {
+    fold_periodic_pads(l0, l1);
+    const size_t nu = static_cast<size_t>(m_.nu);
+    for (int pv = 0; pv < m_.Wv; ++pv) {
+        const bool ghost_row = pv == 0 || pv == m_.Wv - 1;
+        const bool keep = !ghost_row || (pv == 0 ? sl_.nb_lo : sl_.nb_hi);
+        const size_t c0 = static_cast<size_t>(pv) * m_.Wu + 1;
+        if (!keep) {  // a pad row beyond the domain's v edge: nothing to deposit, φ cleared
+            for (int l = l0; l < l1; ++l)
+                std::fill_n(phi_.data() + plane_ * static_cast<size_t>(l) + c0, nu, 0.0);
+            continue;
+        }
+        gather_row(la, pv, l0, l1, c0);
+        add_row(la, pv, c0);
+    }
+}
+
+// What a ray deposits in a periodic axis's pad cell belongs to the cell at the other end.
+void MapSweep::fold_periodic_pads(int l0, int l1) {
+    for (int l = l0; l < l1; ++l) {
+        double* ph = phi_.data() + plane_ * static_cast<size_t>(l);
+        if (sl_.per_u)
+            for (int pv = 0; pv < m_.Wv; ++pv) {
+                double* r = ph + static_cast<size_t>(pv) * m_.Wu;
+                r[m_.nu] += r[0];
+                r[1] += r[m_.nu + 1];
+                r[0] = r[m_.nu + 1] = 0.0;
             }
-            const std::span<double> leaving = io.out();
-            if (!leaving.empty()) {
-                for (int l = 0; l < p; ++l)
-                    std::copy(A.begin() + static_cast<std::ptrdiff_t>(ds * l + sl.row(0)),
-                              A.begin() + static_cast<std::ptrdiff_t>(ds * l + sl.row(0) + real),
-                              leaving.begin() + static_cast<std::ptrdiff_t>(real * l));
-            } else {
-                for (int l = 0; l < p; ++l)
-                    acc.escaped[2][far_side] += map_power(grp * p + l, A.data() + ds * static_cast<size_t>(l));
+        if (sl_.per_v) {
+            const int nv = m_.vhi - m_.vlo;
+            for (int pu = 0; pu < m_.Wu; ++pu) {
+                ph[static_cast<size_t>(nv) * m_.Wu + pu] += ph[pu];
+                ph[static_cast<size_t>(m_.Wu) + pu] += ph[static_cast<size_t>(nv + 1) * m_.Wu + pu];
+                ph[pu] = ph[static_cast<size_t>(nv + 1) * m_.Wu + pu] = 0.0;
             }
-        });
-        acc.wait_seconds += chain.wait_seconds;
+        }
+    }
+}
+
+// Row sums over the directions [l0, l1) of padded row pv (cells from column c0) into rows_:
+// fluence, flux, and Σ_n P^{n,m}/|Ω^m| φ_n per bin m, the last only inside the row's medium
+// span (nothing scatters in vacuum). Zeroes the row of φ.
+void MapSweep::gather_row(int la, int pv, int l0, int l1, size_t c0) {
+    const MediumSpan& sp = span_[static_cast<size_t>(la) * m_.Wv + pv];
+    const int i_lo = std::clamp(sp.lo - 1, 0, m_.nu), i_hi = std::clamp(sp.hi - 1, i_lo, m_.nu);
+    auto gather = [&](int i0, int i1, int ncols) {
+        if (i1 > i0)
+            gather_directions(i1 - i0, l1 - l0,
+                              phi_.data() + plane_ * static_cast<size_t>(l0) + c0 + i0, plane_,
+                              C_.data() + static_cast<size_t>(l0) * nc_, nc_, ncols,
+                              rows_.data() + i0, static_cast<size_t>(m_.nu));
+    };
+    gather(0, i_lo, nc_fluence_);
+    gather(i_lo, i_hi, nc_);
+    gather(i_hi, m_.nu, nc_fluence_);
+}
+
+// Adds the row sums of padded row pv of local layer la into the fields: fluence, flux, and
+// sigma_s times the scattered light into every coarse bin of U (eq. 5).
+void MapSweep::add_row(int la, int pv, size_t c0) {
+    const size_t nu = static_cast<size_t>(m_.nu);
+    const double* tot = rows_.data();
+    const double* Fr = tot + (in_.flux ? m_.nu : 0);
+    const double* Sr = tot + (in_.flux ? 4 : 1) * m_.nu;
+    const double* Kl = K_.data() + plane_ * static_cast<size_t>(la);
+    // Row start in the fields and their strides along u.
+    const Int3 g = m_.cell(la, pv, 1);
+    double* fl = &(*acc_.fluence)(g[0], g[1], g[2]);
+    double* fx = in_.flux ? &(*acc_.flux)(g[0], g[1], g[2]) : nullptr;
+    double* u = &U_(g[0], g[1], g[2]);
+    const std::ptrdiff_t s_fl = acc_.fluence->stride(m_.ua), s_u = U_.stride(m_.ua);
+    const std::ptrdiff_t s_fx = in_.flux ? acc_.flux->stride(m_.ua) : 0;
+    for (size_t i = 0; i < nu; ++i, fl += s_fl, u += s_u, fx += s_fx) {
+        if (tot[i] == 0.0) continue;
+        *fl += tot[i];
+        if (in_.flux)
+            for (int ax = 0; ax < 3; ++ax) fx[ax] += Fr[static_cast<size_t>(ax) * nu + i];
+        const double sigma_s = in_.albedo * Kl[c0 + i];
+        if (sigma_s == 0.0) continue;
+        if (isotropic_)
+            for (int mm = 0; mm < nm_; ++mm)
+                u[mm] += sigma_s * D_[static_cast<size_t>(mm)] * tot[i];
+        else
+            for (int mm = 0; mm < nm_; ++mm)
+                u[mm] += sigma_s * Sr[static_cast<size_t>(mm) * nu + i];
+    }
+}
+
+// Pipelined down (or up) the slab chain, one group of p directions at a time
+// (solvers/sweep/chain.h): group grp's message is its p maps' rays leaving the slab.
+void MapSweep::sweep_z_chain() {
+    A_.assign(ds_ * static_cast<size_t>(p_), 0.0);
+    B_.assign(A_.size(), 0.0);
+    sweep::ChainGroups groups;
+    groups.size.assign(static_cast<size_t>(p_), sl_.real_size() * static_cast<size_t>(p_));
+    const sweep::ChainStats chain = sweep::pass_down(
+        d_, m_.s, groups, [&](int grp, sweep::ChainIO& io) { sweep_z_group(grp, io); });
+    acc_.wait_seconds += chain.wait_seconds;
+}
+
+// Group grp (directions grp p .. grp p + p - 1) across the rank's slab: the rays entering from
+// upstream (none at the chain's head), one step per layer, then the rays leaving handed
+// downstream or, at the chain's end, counted as escaped through the far face.
+void MapSweep::sweep_z_group(int grp, sweep::ChainIO& io) {
+    const size_t real = sl_.real_size();
+    std::fill(A_.begin(), A_.end(), 0.0);
+    std::fill(B_.begin(), B_.end(), 0.0);
+    const std::span<const double> entering = io.in();
+    if (!entering.empty())
+        for (int l = 0; l < p_; ++l)
+            std::copy(entering.begin() + static_cast<std::ptrdiff_t>(real * l),
+                      entering.begin() + static_cast<std::ptrdiff_t>(real * (l + 1)),
+                      rays(A_, l) + sl_.row(0));
+    const long t_first = m_.s > 0 ? step_of_layer(m_.alo) : step_of_layer(m_.ahi - 1);
+    for (long t = t_first; t < t_first + m_.layers(); ++t) {
+        for (int l = 0; l < p_; ++l) run_direction(grp * p_ + l, t, rays(A_, l), rays(B_, l));
+        deposit(layer_of_step(t) - m_.alo, grp * p_, grp * p_ + p_);
+        std::swap(A_, B_);
+    }
+    const std::span<double> leaving = io.out();
+    if (!leaving.empty()) {
+        for (int l = 0; l < p_; ++l)
+            std::copy(rays(A_, l) + sl_.row(0), rays(A_, l) + sl_.row(0) + real,
+                      leaving.begin() + static_cast<std::ptrdiff_t>(real * l));
     } else {
-        // Every slab at once; rays crossing a slab boundary are exchanged after each step.
-        std::vector<double> A(ds * static_cast<size_t>(nd), 0.0), B(A.size(), 0.0);
-        std::vector<double> to_hi, to_lo, from_lo, from_hi;
-        std::vector<int> dSv(static_cast<size_t>(nd));
-        // A periodic map axis (x or y) is swept cyclically: the rays leaving the far face
-        // re-enter at the near face (no new source after the first pass) until the power the
-        // map still carries is below kCyclicTolerance of what it carried after the first pass.
-        const bool cyclic = d.periodic(m.a);
-        double first_pass_power = 0.0;
-        for (long t = 0;; ++t) {
-            if (t > 0 && t % m.n[m.a] == 0) {
-                double power = 0.0;
-                for (int l = 0; l < nd; ++l) power += map_power(l, A.data() + ds * static_cast<size_t>(l));
-                if (!cyclic) {
-                    acc.escaped[m.a][far_side] += power;
-                    break;
-                }
-                MPI_Allreduce(MPI_IN_PLACE, &power, 1, MPI_DOUBLE, MPI_SUM, d.comm());
-                if (t == m.n[m.a]) {
-                    first_pass_power = power;
-                    std::fill(Us.begin(), Us.end(), 0.0);
-                }
-                if (power <= kCyclicTolerance * first_pass_power || t >= kMaxCyclicPasses * m.n[m.a]) {
-                    double mine = 0.0;
-                    for (int l = 0; l < nd; ++l) mine += map_power(l, A.data() + ds * static_cast<size_t>(l));
-                    acc.truncated += mine;
-                    break;
-                }
-            }
-            for (int l = 0; l < nd; ++l) {
-                run_direction(l, t, A.data() + ds * static_cast<size_t>(l), B.data() + ds * static_cast<size_t>(l));
-                dSv[static_cast<size_t>(l)] = geo.dSv;
-            }
-            to_hi.clear();
-            to_lo.clear();
-            size_t n_from_lo = 0, n_from_hi = 0;
-            for (int l = 0; l < nd; ++l) {
-                const int s = dSv[static_cast<size_t>(l)];
-                const double* b = B.data() + ds * static_cast<size_t>(l);
-                if (s > 0) {
-                    to_hi.insert(to_hi.end(), b + sl.row(sl.NvS), b + sl.row(sl.NvS + s));
-                    n_from_lo += static_cast<size_t>(s) * sl.NuS;
-                } else if (s < 0) {
-                    to_lo.insert(to_lo.end(), b + sl.row(s), b + sl.row(0));
-                    n_from_hi += static_cast<size_t>(-s) * sl.NuS;
-                }
-            }
-            from_lo.assign(n_from_lo, 0.0);
-            from_hi.assign(n_from_hi, 0.0);
-            const double t0 = MPI_Wtime();
-            MPI_Sendrecv(to_hi.data(), sl.nb_hi ? static_cast<int>(to_hi.size()) : 0, MPI_DOUBLE, sl.nb_hi ? z_hi : MPI_PROC_NULL, 950,
-                         from_lo.data(), static_cast<int>(from_lo.size()), MPI_DOUBLE, sl.nb_lo ? z_lo : MPI_PROC_NULL, 950,
-                         d.comm(), MPI_STATUS_IGNORE);
-            MPI_Sendrecv(to_lo.data(), sl.nb_lo ? static_cast<int>(to_lo.size()) : 0, MPI_DOUBLE, sl.nb_lo ? z_lo : MPI_PROC_NULL, 951,
-                         from_hi.data(), static_cast<int>(from_hi.size()), MPI_DOUBLE, sl.nb_hi ? z_hi : MPI_PROC_NULL, 951,
-                         d.comm(), MPI_STATUS_IGNORE);
-            acc.wait_seconds += MPI_Wtime() - t0;
-            size_t ilo = 0, ihi = 0;
-            for (int l = 0; l < nd; ++l) {
-                const int s = dSv[static_cast<size_t>(l)];
-                double* b = B.data() + ds * static_cast<size_t>(l);
-                if (s > 0 && sl.nb_lo) {
-                    std::copy(from_lo.begin() + static_cast<std::ptrdiff_t>(ilo),
-                              from_lo.begin() + static_cast<std::ptrdiff_t>(ilo + static_cast<size_t>(s) * sl.NuS), b + sl.row(0));
-                    ilo += static_cast<size_t>(s) * sl.NuS;
-                } else if (s < 0 && sl.nb_hi) {
-                    std::copy(from_hi.begin() + static_cast<std::ptrdiff_t>(ihi),
-                              from_hi.begin() + static_cast<std::ptrdiff_t>(ihi + static_cast<size_t>(-s) * sl.NuS),
-                              b + sl.row(sl.NvS + s));
-                    ihi += static_cast<size_t>(-s) * sl.NuS;
-                }
-            }
-            deposit(layer_of_step(t % m.n[m.a]) - m.alo, 0, nd);
-            std::swap(A, B);
+        for (int l = 0; l < p_; ++l)
+            acc_.escaped[2][far_side_] += map_power(grp * p_ + l, rays(A_, l));
+    }
+}
+
+// Every slab at once; rays crossing a slab boundary are exchanged after each step.
+// A periodic map axis (x or y) is swept cyclically: the rays leaving the far face
+// re-enter at the near face (no new source after the first pass) until the power the
+// map still carries is below kCyclicTolerance of what it carried after the first pass.
+void MapSweep::sweep_lateral() {
+    A_.assign(ds_ * static_cast<size_t>(nd_), 0.0);
+    B_.assign(A_.size(), 0.0);
+    dSv_.assign(static_cast<size_t>(nd_), 0);
+    first_pass_power_ = 0.0;
+    for (long t = 0;; ++t) {
+        if (t > 0 && t % m_.n[m_.a] == 0 && pass_ends_sweep(t)) break;
+        for (int l = 0; l < nd_; ++l)
+            dSv_[static_cast<size_t>(l)] = run_direction(l, t, rays(A_, l), rays(B_, l));
+        exchange_crossing_rays();
+        deposit(layer_of_step(t % m_.n[m_.a]) - m_.alo, 0, nd_);
+        std::swap(A_, B_);
+    }
+}
+
+// At the end of a pass (step t): on an open map axis the sweep ends, the light left in the
+// map leaving through the far face; on a periodic one it ends when the map's power (all
+// ranks) is down to kCyclicTolerance of the first pass's, or after kMaxCyclicPasses passes,
+// the rest counted as truncated. Ũ drives the first pass only.
+bool MapSweep::pass_ends_sweep(long t) {
+    double power = 0.0;
+    for (int l = 0; l < nd_; ++l) power += map_power(l, rays(A_, l));
+    if (!d_.periodic(m_.a)) {
+        acc_.escaped[m_.a][far_side_] += power;
+        return true;
+    }
+    MPI_Allreduce(MPI_IN_PLACE, &power, 1, MPI_DOUBLE, MPI_SUM, d_.comm());
+    if (t == m_.n[m_.a]) {
+        first_pass_power_ = power;
+        std::fill(Us_.begin(), Us_.end(), 0.0);
+    }
+    if (power <= kCyclicTolerance * first_pass_power_ || t >= kMaxCyclicPasses * m_.n[m_.a]) {
+        double mine = 0.0;
+        for (int l = 0; l < nd_; ++l) mine += map_power(l, rays(A_, l));
+        acc_.truncated += mine;
+        return true;
+    }
+    return false;
+}
+
+// Hands the rays that left the rank's z range in this step (B's overflow rows) to the z
+// neighbours and takes theirs into B's edge rows: one message per neighbour and step, all
+// directions batched (tag 950 toward high z, 951 toward low z).
+void MapSweep::exchange_crossing_rays() {
+    pack_crossing_rays();
+    const double t0 = MPI_Wtime();
+    MPI_Sendrecv(to_hi_.data(), sl_.nb_hi ? static_cast<int>(to_hi_.size()) : 0, MPI_DOUBLE,
+                 sl_.nb_hi ? z_hi_ : MPI_PROC_NULL, 950, from_lo_.data(),
+                 static_cast<int>(from_lo_.size()), MPI_DOUBLE, sl_.nb_lo ? z_lo_ : MPI_PROC_NULL,
+                 950, d_.comm(), MPI_STATUS_IGNORE);
+    MPI_Sendrecv(to_lo_.data(), sl_.nb_lo ? static_cast<int>(to_lo_.size()) : 0, MPI_DOUBLE,
+                 sl_.nb_lo ? z_lo_ : MPI_PROC_NULL, 951, from_hi_.data(),
+                 static_cast<int>(from_hi_.size()), MPI_DOUBLE, sl_.nb_hi ? z_hi_ : MPI_PROC_NULL,
+                 951, d_.comm(), MPI_STATUS_IGNORE);
+    acc_.wait_seconds += MPI_Wtime() - t0;
+    unpack_crossing_rays();
+}
+
+// Direction by direction, the dSv overflow rows of B beyond the high (dSv > 0) or low edge
+// into to_hi_ / to_lo_; from_lo_ / from_hi_ sized for the neighbours' matching rows.
+void MapSweep::pack_crossing_rays() {
+    to_hi_.clear();
+    to_lo_.clear();
+    size_t n_from_lo = 0, n_from_hi = 0;
+    for (int l = 0; l < nd_; ++l) {
+        const int s = dSv_[static_cast<size_t>(l)];
+        const double* b = rays(B_, l);
+        if (s > 0) {
+            to_hi_.insert(to_hi_.end(), b + sl_.row(sl_.NvS), b + sl_.row(sl_.NvS + s));
+            n_from_lo += static_cast<size_t>(s) * sl_.NuS;
+        } else if (s < 0) {
+            to_lo_.insert(to_lo_.end(), b + sl_.row(s), b + sl_.row(0));
+            n_from_hi += static_cast<size_t>(-s) * sl_.NuS;
         }
     }
-    if (!z_map) {
-        accumulate_halo(U, d, 2);
-        accumulate_halo(*acc.fluence, d, 2);
-        if (acc.flux) accumulate_halo(*acc.flux, d, 2);
+    from_lo_.assign(n_from_lo, 0.0);
+    from_hi_.assign(n_from_hi, 0.0);
+}
+
+// The rays received from the low (high) neighbour into the first (last) dSv rows of B's real
+// slots, direction by direction.
+void MapSweep::unpack_crossing_rays() {
+    size_t ilo = 0, ihi = 0;
+    for (int l = 0; l < nd_; ++l) {
+        const int s = dSv_[static_cast<size_t>(l)];
+        double* b = rays(B_, l);
+        if (s > 0 && sl_.nb_lo) {
+            std::copy(from_lo_.begin() + static_cast<std::ptrdiff_t>(ilo),
+                      from_lo_.begin() +
+                          static_cast<std::ptrdiff_t>(ilo + static_cast<size_t>(s) * sl_.NuS),
+                      b + sl_.row(0));
+            ilo += static_cast<size_t>(s) * sl_.NuS;
+        } else if (s < 0 && sl_.nb_hi) {
+            std::copy(from_hi_.begin() + static_cast<std::ptrdiff_t>(ihi),
+                      from_hi_.begin() +
+                          static_cast<std::ptrdiff_t>(ihi + static_cast<size_t>(-s) * sl_.NuS),
+                      b + sl_.row(sl_.NvS + s));
+            ihi += static_cast<size_t>(-s) * sl_.NuS;
+        }
+    }
+}
+
+void MapSweep::accumulate_ghosts() {
+    accumulate_halo(U_, d_, 2);
+    accumulate_halo(*acc_.fluence, d_, 2);
+    if (acc_.flux) accumulate_halo(*acc_.flux, d_, 2);
+}
+
+}  // namespace
+
+void sweep_map(const Decomposition& d, int face, const MapInputs& in, MapAccumulators& acc) {
+    MapSweep map(d, face, in, acc);
+    map.snapshot_and_clear();
+    if (map.z_map()) {
+        map.sweep_z_chain();
+    } else {
+        map.sweep_lateral();
+        map.accumulate_ghosts();
     }
 }
 
