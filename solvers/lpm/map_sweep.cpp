@@ -284,7 +284,7 @@ SlotLayout slot_layout(const MapFrame& m, const Decomposition& d, int R, int z_l
 // path integrals φ of the current step. Construction only reads the inputs (no messages);
 // snapshot_and_clear and the sweeps are collective over d.comm().
 class MapSweep {
-  public:
+public:
     MapSweep(const Decomposition& d, int face, const MapInputs& in, MapAccumulators& acc);
 
     // Snapshot Ũ of this face's coarse bins (with the neighbours' z ghost planes); those bins
@@ -299,7 +299,7 @@ class MapSweep {
     // After sweep_lateral: the deposits in the ghost layers are added to their owners.
     void accumulate_ghosts();
 
-  private:
+private:
     void direction_tables();
     void deposit_columns();
     bool vacuum(size_t at) const;

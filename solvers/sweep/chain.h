@@ -65,7 +65,7 @@ struct ChainGroups {
 
 // What step(g, io) sees of group g on this rank.
 class ChainIO {
-  public:
+public:
     // Upstream's message of g (size[g] doubles); empty at the head. The first call blocks until
     // it has arrived (timed into ChainStats::wait_seconds).
     std::span<const double> in();
@@ -73,7 +73,7 @@ class ChainIO {
     // it), sent when step returns; empty where g stops (the chain's end or last[g]).
     std::span<double> out() const { return out_; }
 
-  private:
+private:
     template <class Step>
     friend ChainStats pass_down(const Decomposition& d, int dir, const ChainGroups& groups,
                                 Step&& step);
