@@ -158,6 +158,13 @@ std::int64_t TableReader::integer(const std::string& key, std::int64_t lo, std::
     } else {
         fail(key, fmt::format("must be an integer {}", found(v)));
     }
+    // toml11 reads a literal beyond the 64-bit range as the nearest limit, silently: the limits
+    // themselves are therefore refused as "out of range" (a seed of 2^64 ran as 2^63 - 1).
+    constexpr std::int64_t kMax = std::numeric_limits<std::int64_t>::max(), kMin = std::numeric_limits<std::int64_t>::min();
+    hi = std::min(hi, kMax - 1);
+    lo = std::max(lo, kMin + 1);
+    if (x == kMax || x == kMin)
+        fail(key, fmt::format("is beyond the 64-bit integer range: must be an integer in [{}, {}]", lo, hi));
     if (x < lo || x > hi) fail(key, fmt::format("= {} must be an integer in [{}, {}]", x, lo, hi));
     return x;
 }

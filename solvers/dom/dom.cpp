@@ -71,6 +71,9 @@ public:
     // thick for it (check_diamond_dsa, from the medium: kappa* = (1 - a f) rho sigma_t of every band).
     void check(const Scene&, const Decomposition& d, const Medium& m) const override {
         dom::check_sweep_decomposition(d);
+        for (const std::string& face : opt_.reflective)  // "x-" ... "z+", validated with the options
+            if (d.periodic(face[0] - 'x'))
+                throw Error(fmt::format("dom: face {} cannot be both reflective and periodic", face));
         if (opt_.scheme != "diamond" || opt_.iteration != "dsa") return;
         const dom::AngularSet ang = dom::make_angular_set(opt_);
         double rho_max = 0.0;

@@ -125,11 +125,24 @@ void check_light_method(const Decomposition& d, LightSpec::Method method) {
 }
 
 void check_lights_leave(const Decomposition& d, const std::vector<DirectionalLight>& lights) {
+    const Int3 n = d.global().shape();
     for (const auto& light : lights) {
+        // Path to the nearest non-periodic face it can leave through (cells), and how often it
+        // wraps around the periodic axes on the way.
+        double path = std::numeric_limits<double>::infinity();
         for (int a = 0; a < 3; ++a)
-            if (d.periodic(a) && std::abs(light.w[a]) == norm(light.w))
-                throw Error(fmt::format("light '{}' travels along periodic axis {}: it never leaves the domain",
-                                        light.name, "xyz"[a]));
+            if (!d.periodic(a) && light.w[a] != 0.0) path = std::min(path, n[a] / std::abs(light.w[a]));
+        double wraps = 0.0;
+        for (int a = 0; a < 3; ++a)
+            if (d.periodic(a)) wraps = std::max(wraps, path * std::abs(light.w[a]) / n[a]);
+        if (!std::isfinite(path))
+            throw Error(fmt::format("light '{}' travels along periodic axes only: it never leaves the domain",
+                                    light.name));
+        if (wraps > kMaxLightWraps)
+            throw Error(fmt::format("light '{}' (direction [{:.3g}, {:.3g}, {:.3g}]) would cross the periodic domain "
+                                    "{:.3g} times before it leaves (at most {:g}): make it less parallel to the "
+                                    "periodic axes, or set those axes non-periodic",
+                                    light.name, light.w.x, light.w.y, light.w.z, wraps, kMaxLightWraps));
         if (d.periodic(2) && light.w.z != 0.0)
             throw Error(fmt::format("light '{}' is not horizontal (direction z = {:.3g}) and grid.periodic z is "
                                     "set: light leaving through the bottom would enter again at the top, which "

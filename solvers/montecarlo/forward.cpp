@@ -389,7 +389,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
         }
     }
     progress.finish();
-    if (done < kMinBatchesForTarget && d.rank() == 0)
+    if (done > 0 && done < kMinBatchesForTarget && d.rank() == 0)  // 0: no light, nothing traced
         log::warn("montecarlo: the standard errors come from {} batch means only ({} degrees of freedom) and "
                   "are themselves uncertain; use more batches (model.montecarlo.batches) or a longer time_budget",
                   done, std::max(0, done - 1));

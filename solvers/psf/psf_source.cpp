@@ -47,7 +47,8 @@ void check_decomposition(const Decomposition& d) {
         throw Error(fmt::format("model psf needs at least {} z layers per rank (its light volume has {} ghost "
                                 "layers): {} layers on {} ranks leave {}; use at most {} rank{}",
                                 kLevel0Ghost, kLevel0Ghost, d.global().size(2), d.size(), d.thinnest(2),
-                                d.global().size(2) / kLevel0Ghost, d.global().size(2) / kLevel0Ghost == 1 ? "" : "s"));
+                                std::max(1, d.global().size(2) / kLevel0Ghost),
+                                std::max(1, d.global().size(2) / kLevel0Ghost) == 1 ? "" : "s"));
 }
 
 PsfSource::PsfSource(const SolveContext& ctx, const PsfOptions& opt)

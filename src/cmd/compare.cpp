@@ -53,6 +53,17 @@ struct CompareArgs {
     bool json = false;
 };
 
+// A NaN or Inf anywhere makes every metric meaningless (NaN compares false, so a NaN run looked
+// identical to itself and "inf" apart from a finite one): refuse, naming the file and values.
+template <class T>
+void require_finite(const std::vector<T>& v, const std::string& file, const std::string& what) {
+    const auto bad = std::count_if(v.begin(), v.end(), [](T x) { return !std::isfinite(x); });
+    if (bad > 0)
+        throw Error(fmt::format("'{}': {} has {} non-finite value(s) (NaN or Inf) of {}: the run that wrote it "
+                                "failed; nothing to compare",
+                                file, what, bad, v.size()));
+}
+
 nlohmann::json compare_runs(const CompareArgs& args) {
     const std::string field = "fields/" + args.field, err = field + "_stderr";
     // transmittance_sun is written only when the scene has a sun: say so rather than "no such group".
@@ -83,9 +94,12 @@ nlohmann::json compare_runs(const CompareArgs& args) {
         if (fa.shape != fb.shape)
             throw Error(fmt::format("{}: grids differ ({}x{}x{} against {}x{}x{})", path, fa.shape[0], fa.shape[1],
                                     fa.shape[2], fb.shape[0], fb.shape[1], fb.shape[2]));
+        require_finite(fa.values, args.a, path);
+        require_finite(fb.values, args.b, path);
         std::vector<double> stderr_b;
         const bool with_stderr = has_dataset(args.b, err + "/" + band);
         if (with_stderr) stderr_b = read_field(args.b, err + "/" + band).values;
+        if (with_stderr) require_finite(stderr_b, args.b, err + "/" + band);
         const FieldError e = field_error(fa.values, fb.values, density.values, with_stderr ? &stderr_b : nullptr);
         // NaN (undefined) is written as null.
         nlohmann::json j = {{"band", band},     {"rel_l2", e.rel_l2}, {"max_rel", e.max_rel},
@@ -101,6 +115,8 @@ nlohmann::json compare_runs(const CompareArgs& args) {
         if (ia.width != ib.width || ia.height != ib.height)
             throw Error(fmt::format("compare: images differ in size ({}x{} against {}x{})", ia.width, ia.height,
                                     ib.width, ib.height));
+        require_finite(ia.rgba, args.image_a, "the image");
+        require_finite(ib.rgba, args.image_b, "the image");
         const ImageError e = image_error(ia.rgba, ib.rgba);
         out["image"] = {{"rmse", e.rmse}, {"rel_error", e.rel_error}, {"pixels", e.pixels}};
         if (!e.undefined.empty()) out["image"]["undefined"] = e.undefined;

@@ -41,9 +41,10 @@ struct LightTransport {
     // tau linear across the cell, <e^{-tau}> = e^{-tau_c} Π_a sinh(h g_a / 2) / (h g_a / 2),
     // g = sigma_t ∇tau_rho: along the light exactly rho sigma_t (w·∇tau_rho = rho), across it
     // from central differences of the neighbours' tau_rho, one-sided at a domain face and next
-    // to an empty neighbour (where tau_rho bends: the surface of a cloud). Exact for a
-    // homogeneous medium under a plane boundary; d gives the domain and periodic axes, rho the
-    // density with its ghost layer.
+    // to an empty neighbour (where tau_rho bends: the surface of a cloud); never above what the
+    // cell can remove from the beam, Σ|w_a| / (kappa h), nor above 1. Exact for a homogeneous
+    // medium under a plane boundary; d gives the domain and periodic axes, rho the density with
+    // its ghost layer.
     double transmittance_mean(const Decomposition& d, const Field<double>& rho, int light, double sigma_t, double h,
                               int i, int j, int k) const;
     // Reduced-incident fluence ∫ I_ri dw = Σ E0 T (W/m²) in band b at cell (i, j, k).

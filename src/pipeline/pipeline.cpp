@@ -97,6 +97,22 @@ void log_scene(const Scene& s, const Decomposition& d, const ScatteringModel& mo
 
 }  // namespace
 
+void check_finite_solution(const DiffuseSolution& diffuse, const Decomposition& d, const std::string& model) {
+    std::int64_t bad[2] = {0, 0};  // fluence, flux
+    for (const auto& f : diffuse.fluence)
+        for_each_cell(d.local(), [&](int i, int j, int k) { bad[0] += !std::isfinite(f(i, j, k)); });
+    for (const auto& f : diffuse.flux)
+        for_each_cell(d.local(), [&](int i, int j, int k) {
+            for (int c = 0; c < f.ncomp(); ++c) bad[1] += !std::isfinite(f(i, j, k, c));
+        });
+    MPI_Allreduce(MPI_IN_PLACE, bad, 2, MPI_INT64_T, MPI_SUM, d.comm());
+    if (bad[0] + bad[1] > 0)
+        throw Error(fmt::format("model {} produced non-finite values (NaN or Inf): {} in fluence_diffuse, {} in "
+                                "flux_diffuse; nothing was written (run with --log-level debug for the solver's "
+                                "steps, and see the README's notes on the model's limits)",
+                                model, bad[0], bad[1]));
+}
+
 Scene load_run_scene(MPI_Comm comm, const RunOptions& opts) {
     Scene scene;
     run_collective(comm, [&] {
@@ -153,6 +169,7 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
         ScopedTimer t(report, "model");
         model->solve(ctx, diffuse);
     }
+    check_finite_solution(diffuse, d, model->name());
 
     Image image;
     if (scene.output.image) {

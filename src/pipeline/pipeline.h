@@ -10,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "src/model/model.h"
 #include "src/scene/scene.h"
 
 namespace nimbus {
@@ -33,5 +34,10 @@ Scene load_run_scene(MPI_Comm comm, const RunOptions& opts);
 // outputs are written under temporary names and renamed together at the end: OutputFiles).
 RunResult run_pipeline(MPI_Comm comm, const RunOptions& opts);
 RunResult run_pipeline(MPI_Comm comm, const Scene& scene);
+
+// A model's fields must be finite before anything is rendered or written: a NaN or Inf means the
+// model failed (an overflow, a diverged solve), and the run says so instead of writing it.
+// Collective over d.comm(): throws the same Error on every rank, with the counts.
+void check_finite_solution(const DiffuseSolution& diffuse, const Decomposition& d, const std::string& model);
 
 }  // namespace nimbus

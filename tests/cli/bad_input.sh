@@ -93,6 +93,10 @@ if [ "$np" -gt 1 ] && "$nimbus" info --set "grid.n=[8,8,8]" 2>&1 | grep -q "mode
   # refused by info as by run, before the light pass (5 layers on 2 ranks crashed MPI before).
   SUB=info expect_error "model psf needs at least 3 z layers per rank" --set "grid.n=[8,8,5]" --set 'model.name="psf"'
   expect_error "model psf needs at least 3 z layers per rank" --set "grid.n=[8,8,5]" --set 'model.name="psf"' --set output.image=false
+  # Too few layers for even 2 ranks: the advice is 1 rank (it said "at most 0 ranks").
+  if [ "$np" -eq 2 ]; then
+    expect_error "2 layers on 2 ranks leave 1; use at most 1 rank\$" --set "grid.n=[8,8,2]" --set 'model.name="psf"' --set output.image=false
+  fi
 fi
 # Decompositions the light pass or a model cannot use: info refuses them as run does, before
 # the light pass.
@@ -104,6 +108,16 @@ SUB=info expect_error "model dom: grid.periodic z is not supported" "${small[@]}
 # Periodic z with a sun: light leaving the bottom would re-enter at the top (no light pass models it).
 SUB=info expect_error "is not horizontal .* and grid.periodic z is set" "${small[@]}" --set "grid.periodic=[false,false,true]"
 expect_error "is not horizontal .* and grid.periodic z is set" "${small[@]}" --set 'model.name="single"' --set "grid.periodic=[false,false,true]" --set 'light.method="exact"'
+# A light that wraps around periodic x/y ~1e7 times before it leaves: refused before the light
+# pass (the exact pass walked every wrap and hung).
+SUB=info expect_error "would cross the periodic domain .* times before it leaves" "${small[@]}" --set "grid.periodic=[true,true,false]" --set "sun.direction=[1,0.5,-1e-7]"
+expect_error "would cross the periodic domain .* times before it leaves" "${small[@]}" --set "grid.periodic=[true,true,false]" --set "sun.direction=[1,0.5,-1e-7]" --set 'light.method="exact"'
+# dom's reflective faces cannot be periodic: info refuses it as run does.
+if "$nimbus" info --set "grid.n=[8,8,8]" 2>&1 | grep -q "models in this build:.*dom"; then
+  SUB=info expect_error "dom: face x+ cannot be both reflective and periodic" "${small[@]}" --set 'model.name="dom"' --set "grid.periodic=[true,false,false]" --set 'model.dom.reflective=["x+"]'
+fi
+# A seed beyond 64 bits is refused, not clamped to 2^63 - 1.
+SUB=info expect_error "model.montecarlo.seed is beyond the 64-bit integer range" "${small[@]}" --set "model.montecarlo.seed=18446744073709551615"
 if [ "$np" -gt 1 ] && "$nimbus" info --set "grid.n=[8,8,8]" 2>&1 | grep -q "models in this build:.*lpm"; then
   expect_error "model lpm needs slabs along z" "${small[@]}" --set 'model.name="lpm"' --set "grid.process_grid=[2,1,1]"
 fi

@@ -47,6 +47,25 @@ with h5py.File(sys.argv[2], "r+") as f:
         f[f"fields/{name}/g"][...] = 0
 PY
 
+# A's output with one NaN in band b's diffuse fluence (a failed run written by an older version):
+# compare must refuse it, as run or reference, and not call it identical to itself.
+N=$tmp/nan_b.h5
+"$py" - "$A" "$N" <<'PY' || { echo "FAIL: making $N"; exit 1; }
+import shutil, sys
+import h5py
+shutil.copy(sys.argv[1], sys.argv[2])
+with h5py.File(sys.argv[2], "r+") as f:
+    v = f["fields/fluence_diffuse/b"]
+    x = v[...]
+    x.flat[7] = float("nan")
+    v[...] = x
+PY
+for pair in "$N $A" "$A $N" "$N $N"; do
+  out=$(nim compare $pair 2>&1); code=$?
+  check "non-finite field refused ($pair, exit $code)" [ $code -eq 1 ]
+  check "non-finite field: the reason" bash -c 'echo "$1" | grep -q "nan_b.h5.: fields/fluence_diffuse/b has 1 non-finite value(s) (NaN or Inf)"' _ "$out"
+done
+
 # The table: one header (rank 0 only), a row per band, the image line.
 out=$(nim compare "$A" "$B" --image-a "$IA" --image-b "$IA2" 2>&1); code=$?
 check "table exits 0 (exit $code)" [ $code -eq 0 ]

@@ -90,6 +90,20 @@ TEST(SceneErrors, MisspelledKeySuggestsTheClosest) {
     expect_error(choice, "scatering", {"render.mode", "did you mean 'scattering'?", "allowed: absorption"});
 }
 
+// toml11 reads integer literals beyond 64 bits as the nearest limit; they must be refused, not
+// run as 2^63 - 1.
+TEST(SceneErrors, IntegersBeyondSixtyFourBitsAreRefused) {
+    for (const std::string big : {"9223372036854775808", "18446744073709551615", "99999999999999999999",
+                                  "9223372036854775807"}) {
+        const std::string text = kBase + "[model.montecarlo]\nseed = " + big + "\n";
+        expect_error(text, "seed = " + big, {"model.montecarlo.seed", "beyond the 64-bit integer range",
+                                               "[0, 9223372036854775806]"});
+    }
+    EXPECT_NO_THROW(load_scene_string(kBase + "[model.montecarlo]\nseed = 9223372036854775806\n", "ok.toml"));
+    const std::string negative = kBase + "[model.montecarlo]\nseed = -99999999999999999999\n";
+    expect_error(negative, "seed = -9", {"model.montecarlo.seed", "beyond the 64-bit integer range"});
+}
+
 TEST(SceneErrors, AlbedoOutsideZeroOne) {
     const std::string text = edit("albedo = 0.9", "albedo = 1.2");
     expect_error(text, "albedo = 1.2", {"optics[0].albedo", "1.2 is outside [0, 1]"});

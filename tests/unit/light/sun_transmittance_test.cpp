@@ -81,6 +81,41 @@ TEST(SunTransmittance, CellMeanIsExactInAThickSlab) {
     }
 }
 
+// A staircase sphere (radius 4.3 cells) on a 2-cell ground layer, periodic x/y, under an oblique
+// sun, exact light pass: at its corners the neighbours' tau differences are no gradient (one lit,
+// one deep in shadow). Every cell mean stays below what a cell can take from the beam,
+// Σ|w_a| / (kappa h), and 1. Together the cells take what the beam brings (n_x n_y h² |w_z|) to
+// within the staircase's own error: 0.78, 1.08 and 1.33 of it at kappa h = 0.5, 2 and 32 (a
+// surface cell and the one behind it can both count as lit), where the unbounded means took
+// 6e27 of it at kappa h = 32 (dom's source power 1e6 x the incident on a dense sphere).
+TEST(SunTransmittance, CellMeanNeverTakesMoreThanTheBeamBrings) {
+    const Int3 n{12, 12, 12};
+    const double h = 1.0;
+    LitMedium s = make(MPI_COMM_WORLD, n, h, [&](int i, int j, int k) {
+        const double x = i + 0.5 - 6, y = j + 0.5 - 6, z = k + 0.5 - 5;
+        return x * x + y * y + z * z < 4.3 * 4.3 || k < 2 ? 1.0 : 0.0; }, {true, true, false});
+    const Vec3 w = normalized(Vec3{0.3, 0.2, -0.93});
+    Report r;
+    const auto lt = compute_light_transport(s.d, s.m, {{"sun", w, {1.0}}}, r, {}, LightSpec::Method::exact);
+    const double sum_w = std::abs(w.x) + std::abs(w.y) + std::abs(w.z);
+    for (double sigma_t : {0.5, 2.0, 32.0}) {
+        double taken = 0.0, over = 0.0;
+        for_each_cell(s.d.local(), [&](int i, int j, int k) {
+            if (s.m.rho(i, j, k) == 0.0) return;
+            const double kh = sigma_t * s.m.rho(i, j, k) * h;
+            const double mean = lt.transmittance_mean(s.d, s.m.rho, 0, sigma_t, h, i, j, k);
+            over = std::max(over, mean / std::min(1.0, sum_w / kh));
+            taken += kh * mean * h * h;  // kappa <T> h³: the power the cell takes from a unit beam
+        });
+        MPI_Allreduce(MPI_IN_PLACE, &taken, 1, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+        MPI_Allreduce(MPI_IN_PLACE, &over, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+        const double brought = n[0] * n[1] * h * h * std::abs(w.z);
+        EXPECT_LE(over, 1.0) << sigma_t;
+        EXPECT_LT(taken, 1.4 * brought) << sigma_t;
+        EXPECT_GT(taken, 0.7 * brought) << sigma_t;
+    }
+}
+
 // Light must leave the domain: with periodic z only horizontal light is accepted, by both
 // methods (the slab chain cannot wrap z, and main's exact pass hung waiting on itself), before
 // anything is traced; a light along a periodic axis is refused too.
@@ -98,6 +133,31 @@ TEST(SunTransmittance, PeriodicZNeedsHorizontalLight) {
     LitMedium px = make(MPI_COMM_WORLD, {4, 4, 6}, 1.0, [](int, int, int) { return 0.5; }, {true, false, false});
     EXPECT_THROW(check_lights_leave(px.d, {along_x}), Error);
     EXPECT_NO_THROW(check_lights_leave(px.d, {oblique}));
+}
+
+// Over periodic x/y a nearly horizontal light wraps around n_z / (n_x |w_z|) times before it
+// leaves through z; the exact pass walks every wrap (w_z = -1e-7 hung), so beyond
+// kMaxLightWraps it is refused before any work, for both methods alike.
+TEST(SunTransmittance, NearlyHorizontalLightOverPeriodicXYIsRefused) {
+    LitMedium s = make(MPI_COMM_WORLD, {4, 4, 6}, 1.0, [](int, int, int) { return 0.5; }, {true, true, false});
+    const DirectionalLight grazing{"grazing", normalized(Vec3{1.0, 0.5, -1e-7}), {1.0}};
+    const DirectionalLight low{"low", normalized(Vec3{1.0, 0.5, -0.01}), {1.0}};  // ~140 wraps
+    const DirectionalLight horizontal{"horizontal", normalized(Vec3{1.0, 0.5, 0.0}), {1.0}};
+    try {
+        check_lights_leave(s.d, {low, grazing});
+        ADD_FAILURE() << "a light wrapping ~1e7 times was accepted";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("light 'grazing'"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("would cross the periodic domain"), std::string::npos) << e.what();
+    }
+    EXPECT_THROW(check_lights_leave(s.d, {horizontal}), Error);
+    EXPECT_NO_THROW(check_lights_leave(s.d, {low}));
+    for (const auto method : {LightSpec::Method::sweep, LightSpec::Method::exact}) {
+        Report r;
+        EXPECT_THROW(compute_light_transport(s.d, s.m, {grazing}, r, {}, method), Error);
+        const LightTransport lt = compute_light_transport(s.d, s.m, {low}, r, {}, method);
+        for_each_cell(s.d.local(), [&](int i, int j, int k) { ASSERT_TRUE(std::isfinite(lt.tau_rho[0](i, j, k))); });
+    }
 }
 
 TEST(SunTransmittance, ExactForAxisAlignedLightInAnyMedium) {

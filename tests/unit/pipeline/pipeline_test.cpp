@@ -102,5 +102,36 @@ TEST(Pipeline, FailedRunLeavesNoOutputAndEveryRankThrows) {
     EXPECT_THROW(run_pipeline(MPI_COMM_WORLD, u), Error);
 }
 
+// A NaN or Inf in any cell of any rank's fluence or flux stops the run on every rank with the
+// counts (the models' own failures are caught before they are written); finite fields pass.
+TEST(Pipeline, NonFiniteFieldsAreAnErrorOnEveryRank) {
+    const Decomposition d(MPI_COMM_WORLD, {6, 5, 8});
+    DiffuseSolution sol;
+    for (int b = 0; b < 2; ++b) {
+        sol.fluence.emplace_back(d.local(), 1, 1, 1.0);
+        sol.flux.emplace_back(d.local(), 1, 3, 0.5);
+    }
+    EXPECT_NO_THROW(check_finite_solution(sol, d, "test"));
+    // Ghost cells are not the model's answer: a NaN there is ignored.
+    const Box g = sol.fluence[0].allocated();
+    sol.fluence[0](g.lo[0], g.lo[1], g.lo[2]) = std::nan("");
+    EXPECT_NO_THROW(check_finite_solution(sol, d, "test"));
+    // One NaN in band 1's fluence and one Inf in band 0's flux, on the last rank only.
+    if (d.rank() == d.size() - 1) {
+        const Box& o = d.local();
+        sol.fluence[1](o.lo[0], o.lo[1], o.hi[2] - 1) = std::nan("");
+        sol.flux[0](o.hi[0] - 1, o.lo[1], o.lo[2], 2) = INFINITY;
+    }
+    try {
+        check_finite_solution(sol, d, "test");
+        ADD_FAILURE() << "non-finite fields accepted";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("model test produced non-finite values (NaN or Inf): 1 in fluence_diffuse, "
+                                             "1 in flux_diffuse"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
 }  // namespace
 }  // namespace nimbus
