@@ -4,6 +4,7 @@
 #include <numbers>
 
 #include "solvers/diffusion/band_groups.h"
+#include "solvers/diffusion/linear_solve.h"
 #include "solvers/diffusion/solve_diffusion.h"
 #include "solvers/diffusion/sources.h"
 #include "src/physics/lights.h"
@@ -26,6 +27,10 @@ public:
     // this is an upper bound elsewhere).
     double memory_bytes(const Scene& s, const Decomposition& d, int) const override {
         return 8.0 * (26.0 + 4.0 * s.nbands()) * static_cast<double>(d.local().cells());
+    }
+    // solver = petsc: the decomposition and model.diffusion.petsc_options (linear_solve.h).
+    void check(const Scene&, const Decomposition& d, const Medium&) const override {
+        if (opt_.solver == "petsc") diffusion::check_petsc(d, opt_);
     }
     void solve(const SolveContext& ctx, DiffuseSolution& out) override {
         ScopedTimer timer(ctx.report, "diffusion");

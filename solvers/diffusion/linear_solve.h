@@ -38,6 +38,14 @@ LinearSolveOutput solve_with_petsc(const Decomposition& d, const Assembler& asse
                                    const DiffusionProblem& p, const SolveRegion& region,
                                    const DiffusionOptions& opt, Report& report);
 
+// Collective over d.comm(). Throws, before anything is computed, the Error solve_with_petsc
+// would throw for this decomposition (slabs along z) or for model.diffusion.petsc_options,
+// which it reads as the solve does (the DMDA on d's grid, a KSP without a matrix): words PETSc
+// would drop, options without the prefix -diffusion_, and values PETSc rejects, naming the first
+// option that fails. What only KSPSetUp or KSPSolve read is checked by the solve, which also
+// refuses options that no object has read by the end of its first KSPSolve.
+void check_petsc(const Decomposition& d, const DiffusionOptions& opt);
+
 // "iteration: residual" pairs as one line, for error messages.
 std::string format_history(const std::vector<std::pair<int, double>>& history);
 

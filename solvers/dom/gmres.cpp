@@ -154,6 +154,7 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     const double t0 = MPI_Wtime();
     const MPI_Comm comm = d.comm();
     ensure_petsc(comm);
+    const petsc::QuietErrors quiet;  // errors: one Error, no traceback (petsc_support.h)
     IterationResult res;
     const Box& own = d.local();
     const int nmom = ang.nmom;

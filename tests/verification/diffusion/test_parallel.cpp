@@ -2,8 +2,9 @@
 // MPI_COMM_SELF (each rank solves the whole domain) agree to the solver tolerance.
 // (e) The PETSc path (KSP CG + BoomerAMG, or PCMG through model.diffusion.petsc_options) and
 // every hypre solver agree with PFMG-PCG.
-// Also: non-convergence is an error that shows the residual history (issue 4 item 2), and
-// the solve region is the bounding box of the full cells plus the margin (item 4).
+// Also: non-convergence is an error that shows the residual history (issue 4 item 2), bad
+// PETSc options are one collective error naming the option, and the solve region is the
+// bounding box of the full cells plus the margin (item 4).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -14,6 +15,7 @@
 #include "solvers/diffusion/diffusion.h"
 #include "src/core/error.h"
 #include "src/scene/medium.h"
+#include "tests/support/expect_collective_error.h"
 #include "tests/support/mpi_test.h"
 
 namespace nimbus {
@@ -168,6 +170,37 @@ TEST(DiffusionParallel, PetscMultigridOnAnUncoarsenableGridIsAnError) {
     auto model = make_diffusion_model(opt);
     Report report;
     EXPECT_THROW(test::run_model(*model, d, kH, kBand, cumulus, kSun, report), Error);
+}
+
+// A bad model.diffusion.petsc_options is one Error, the same on every rank, that names the
+// option and gives PETSc's message: from the model's check (before the light pass), and from the
+// solve on its own. (PETSc's own error handler printed a traceback and made every rank but 0
+// sleep 10 s and exit(0) without MPI_Finalize.) An option that nothing reads is refused after
+// the first solve, by name.
+TEST(DiffusionParallel, BadPetscOptionsAreOneCollectiveErrorNamingTheOption) {
+    Decomposition d(MPI_COMM_WORLD, {kN, kN, kN});
+    const Medium m = test::make_medium(d, kH, kBand, cumulus);
+    const Scene scene;
+    DiffusionOptions opt;
+    opt.solver = "petsc";
+    opt.petsc_options = "-diffusion_ksp_type cg -diffusion_pc_type nonexistent";
+    auto model = make_diffusion_model(opt);
+    test::expect_collective_error([&] { model->check(scene, d, m); },
+                                  "model.diffusion.petsc_options: PETSc rejected '-diffusion_pc_type nonexistent': "
+                                  "Unable to find requested PC type nonexistent");
+    Report report;
+    test::expect_collective_error([&] { test::run_model(*model, d, kH, kBand, cumulus, kSun, report); },
+                                  "KSPSetFromOptions (model.diffusion.petsc_options = '-diffusion_ksp_type cg "
+                                  "-diffusion_pc_type nonexistent') failed with PETSc error 86: Unable to find "
+                                  "requested PC type nonexistent");
+    opt.petsc_options = "-pc_type jacobi";
+    test::expect_collective_error([&] { make_diffusion_model(opt)->check(scene, d, m); },
+                                  "'-pc_type' lacks the prefix of the solver's options, -diffusion_");
+    opt.petsc_options = "-diffusion_pc_typo jacobi";
+    auto typo = make_diffusion_model(opt);
+    typo->check(scene, d, m);
+    test::expect_collective_error([&] { test::run_model(*typo, d, kH, kBand, cumulus, kSun, report); },
+                                  "model.diffusion.petsc_options: PETSc did not use '-diffusion_pc_typo jacobi'");
 }
 
 // Too few iterations: an Error on every rank whose message gives the residual history.
