@@ -58,26 +58,68 @@ Angular::Angular(int p, int k) : p_(p), k_(k) {
                     face_solid_angle(-1.0 + ju * dc, -1.0 + (ju + 1) * dc, -1.0 + jv * dc, -1.0 + (jv + 1) * dc);
 }
 
-int Angular::samples_for(double g, int multiple) {
-    // Sub-square edge (tangent units) well below the HG lobe width ~ (1 - |g|).
-    const double spacing = std::min(0.125, 0.5 * (1.0 - std::abs(g)));
-    const int n = static_cast<int>(std::ceil(2.0 / spacing));
-    return ((n + multiple - 1) / multiple) * multiple;
+namespace {
+
+// Adaptive quadrature of HG over a face rectangle. A square is a 2 x 2 Gauss rule scaled to its
+// exact solid angle once its angular radius is at most kLobeFraction x max(its angle to the
+// lobe's peak, 1 - |g|) -- HG varies on that scale -- and at most kMaxRadius; else it splits in
+// four. The gnomonic map shrinks distances, so the tangent half-diagonal bounds the angular
+// radius. Near the peak the squares shrink geometrically: the cost grows like log(1/(1-|g|)),
+// where a uniform grid fine enough for the lobe grows like (1-|g|)^-2 (tens of seconds and
+// hundreds of MiB at g = 0.99, unbounded as |g| -> 1).
+constexpr double kLobeFraction = 0.2;
+constexpr double kMaxRadius = 0.12;  // rad
+constexpr int kMaxDepth = 40;
+
+struct Lobe {
+    double g;
+    Vec3 w;     // direction of the incident light
+    Vec3 peak;  // w for forward scattering, -w for backward
+    double width;
+};
+
+double integrate_square(const Lobe& lobe, int f, double x1, double x2, double y1, double y2, int depth) {
+    const double radius = 0.5 * std::hypot(x2 - x1, y2 - y1);
+    const Vec3 c = face_direction(f, 0.5 * (x1 + x2), 0.5 * (y1 + y2));
+    const double to_peak = 2.0 * std::asin(std::min(1.0, 0.5 * norm(c - lobe.peak)));
+    if (depth >= kMaxDepth || radius <= std::min(kMaxRadius, kLobeFraction * std::max(to_peak, lobe.width))) {
+        // 2 x 2 Gauss-Legendre in (u, v) with the gnomonic Jacobian (1 + u² + v²)^{-3/2},
+        // weights rescaled to the square's exact solid angle (exact for a constant).
+        constexpr double kGauss = 0.28867513459481287;  // 1 / (2 sqrt 3)
+        const double xm = 0.5 * (x1 + x2), ym = 0.5 * (y1 + y2), hx = (x2 - x1) * kGauss * 2.0, hy = (y2 - y1) * kGauss * 2.0;
+        double sum_j = 0.0, sum_jp = 0.0;
+        for (const double su : {-0.5, 0.5})
+            for (const double sv : {-0.5, 0.5}) {
+                const double u = xm + su * hx, v = ym + sv * hy;
+                const double r2 = 1.0 + u * u + v * v;
+                const double jac = 1.0 / (r2 * std::sqrt(r2));
+                sum_j += jac;
+                sum_jp += jac * hg_phase(lobe.g, dot(lobe.w, face_direction(f, u, v)));
+            }
+        return face_solid_angle(x1, x2, y1, y2) * sum_jp / sum_j;
+    }
+    const double xm = 0.5 * (x1 + x2), ym = 0.5 * (y1 + y2);
+    return integrate_square(lobe, f, x1, xm, y1, ym, depth + 1) + integrate_square(lobe, f, xm, x2, y1, ym, depth + 1) +
+           integrate_square(lobe, f, x1, xm, ym, y2, depth + 1) + integrate_square(lobe, f, xm, x2, ym, y2, depth + 1);
 }
 
-std::vector<Angular::Sample> Angular::sphere_samples(int per_face) const {
-    std::vector<Sample> s;
-    s.reserve(static_cast<size_t>(6 * per_face * per_face));
-    const double d = 2.0 / per_face;
-    const int r = per_face / k_;
+}  // namespace
+
+double hg_over_face_rectangle(double g, const Vec3& w, int f, double x1, double x2, double y1, double y2) {
+    const Lobe lobe{g, w, g >= 0.0 ? w : -w, 1.0 - std::abs(g)};
+    return integrate_square(lobe, f, x1, x2, y1, y2, 0);
+}
+
+std::vector<double> Angular::hg_over_coarse_bins(double g, const Vec3& w) const {
+    std::vector<double> b(static_cast<size_t>(coarse_bins()));
+    const double dc = 2.0 / k_;
     for (int f = 0; f < 6; ++f)
-        for (int b = 0; b < per_face; ++b)
-            for (int a = 0; a < per_face; ++a) {
-                const double x1 = -1.0 + a * d, y1 = -1.0 + b * d;
-                s.push_back({face_direction(f, x1 + 0.5 * d, y1 + 0.5 * d), face_solid_angle(x1, x1 + d, y1, y1 + d),
-                             f * k_ * k_ + (b / r) * k_ + a / r});
+        for (int jv = 0; jv < k_; ++jv)
+            for (int ju = 0; ju < k_; ++ju) {
+                const double x1 = -1.0 + ju * dc, y1 = -1.0 + jv * dc;
+                b[static_cast<size_t>(f * k_ * k_ + jv * k_ + ju)] = hg_over_face_rectangle(g, w, f, x1, x1 + dc, y1, y1 + dc);
             }
-    return s;
+    return b;
 }
 
 const std::vector<double>& Angular::form_factors(double g) const {
@@ -101,9 +143,10 @@ std::vector<double> Angular::compute_form_factors(double g) const {
             for (int m = 0; m < nm; ++m)
                 P[static_cast<size_t>(n * nm + m)] = coarse_omega_[static_cast<size_t>(m)] / (4.0 * std::numbers::pi);
     } else {
-        const std::vector<Sample> sphere = sphere_samples(samples_for(g, k_));
-        const double spacing = 2.0 / samples_for(g, 1);
-        const int sub = std::clamp(static_cast<int>(std::ceil((2.0 / p_) / (4.0 * spacing))), 2, 8);
+        // A map bin's row averages the scattered distribution over sub x sub directions in
+        // the bin, enough to resolve how a lobe narrower than the bin straddles coarse bins.
+        const double lobe = std::min(0.125, 0.5 * (1.0 - std::abs(g)));
+        const int sub = std::clamp(static_cast<int>(std::ceil((2.0 / p_) / (4.0 * lobe))), 2, 8);
         const double d = 2.0 / p_, ds = d / sub;
         std::vector<double> row(static_cast<size_t>(nm));
         // Rows of face 0 by quadrature; the other faces by symmetry (below).
@@ -114,9 +157,8 @@ std::vector<double> Angular::compute_form_factors(double g) const {
                 for (int a = 0; a < sub; ++a) {
                     const double x1 = -1.0 + iu * d + a * ds, y1 = -1.0 + iv * d + b * ds;
                     const double w1 = face_solid_angle(x1, x1 + ds, y1, y1 + ds);
-                    const Vec3 w = face_direction(f, x1 + 0.5 * ds, y1 + 0.5 * ds);
-                    for (const Sample& s : sphere)
-                        row[static_cast<size_t>(s.coarse)] += w1 * s.weight * hg_phase(g, dot(w, s.w));
+                    const std::vector<double> into = hg_over_coarse_bins(g, face_direction(f, x1 + 0.5 * ds, y1 + 0.5 * ds));
+                    for (int m = 0; m < nm; ++m) row[static_cast<size_t>(m)] += w1 * into[static_cast<size_t>(m)];
                 }
             double sum = 0.0;
             for (double v : row) sum += v;
@@ -159,9 +201,7 @@ int Angular::coarse_bin_of(const Vec3& w) const {
 }
 
 std::vector<double> Angular::compute_beam_factors(double g, const Vec3& w) const {
-    std::vector<double> b(static_cast<size_t>(coarse_bins()), 0.0);
-    for (const Sample& s : sphere_samples(4 * samples_for(g, k_)))
-        b[static_cast<size_t>(s.coarse)] += s.weight * hg_phase(g, dot(w, s.w));
+    std::vector<double> b = hg_over_coarse_bins(g, w);
     double sum = 0.0;
     for (double v : b) sum += v;
     for (double& v : b) v /= sum;

@@ -16,8 +16,9 @@
 // Form factors (§3.3): P^{n,m} = (1/|Ω^n|) ∫_{Ω^n} ∫_{Ω^m} p(ω·ω') dω dω' — the fraction of
 // the light travelling in map bin n that a scattering sends into coarse bin m (the paper's
 // F^{n,m} for a phase function normalized to 1, divided by |Ω^n|). Computed by quadrature on
-// sub-squares weighted by their exact solid angle, then each row is normalized to Σ_m = 1, so
-// scattering conserves energy exactly for any g; for g = 0 the rows are |Ω^m|/4π exactly.
+// squares weighted by their exact solid angle, refined toward the HG peak (hg_over_face_rectangle),
+// then each row is normalized to Σ_m = 1, so scattering conserves energy exactly for any g; for
+// g = 0 the rows are |Ω^m|/4π exactly.
 #pragma once
 
 #include <array>
@@ -40,6 +41,11 @@ double face_solid_angle(double x1, double x2, double y1, double y2);
 // The unit direction of face f at tangents (tu, tv).
 Vec3 face_direction(int f, double tu, double tv);
 
+// ∫ p_HG(ω·w) dω over the rectangle [x1,x2] x [y1,y2] of face f, for light travelling along the
+// unit vector w: midpoint squares refined toward the lobe's peak, so the cost grows only like
+// log(1/(1-|g|)) and the whole sphere integrates to 1 within 2e-5 for |g| up to 0.9999.
+double hg_over_face_rectangle(double g, const Vec3& w, int f, double x1, double x2, double y1, double y2);
+
 class Angular {
 public:
     Angular(int p, int k);
@@ -58,23 +64,15 @@ public:
     int coarse_bin_of(const Vec3& w) const;  // the coarse bin containing direction w
 
     // P^{n,m} for HG asymmetry g: row-major [map_bins()][coarse_bins()], rows sum to 1.
-    // Computed once per g and kept (bands sharing g share them; the quadrature costs ~1/(1-|g|)²:
-    // tens of seconds at g = 0.99).
+    // Computed once per g and kept (bands sharing g share them).
     const std::vector<double>& form_factors(double g) const;
     // ∫_{Ω^m} p(ω·w) dω for a collimated beam travelling along unit w (the first-scatter
     // source's angular split), normalized to Σ_m = 1. Kept per (g, w) like form_factors.
     const std::vector<double>& beam_factors(double g, const Vec3& w) const;
 
 private:
-    struct Sample {
-        Vec3 w;
-        double weight;  // exact solid angle of the sub-square
-        int coarse;
-    };
-    // Sub-squares of every face, `per_face` x `per_face` (a multiple of k), with their bins.
-    std::vector<Sample> sphere_samples(int per_face) const;
-    static int samples_for(double g, int multiple);
-
+    // ∫_{Ω^m} p(ω·w) dω for every coarse bin m (unnormalized).
+    std::vector<double> hg_over_coarse_bins(double g, const Vec3& w) const;
     std::vector<double> compute_form_factors(double g) const;
     std::vector<double> compute_beam_factors(double g, const Vec3& w) const;
 
