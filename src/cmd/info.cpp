@@ -122,8 +122,9 @@ void info(const RunOptions& opts) {
                   ccount > 0 ? b.sigma_t * csum / ccount : 0.0, b.sigma_t * rho_max * s.grid.h(),
                   b.sigma_t * cmax * (1 - b.albedo * b.g));
     }
-    say(comm, "light terms: {} (sun {}, sky bins {})", lights.size(), s.sun.enabled ? "on" : "off",
-              s.sky.radiance.empty() ? 0 : s.sky.directions);
+    const bool has_sun = !lights.empty() && lights[0].name == "sun";
+    say(comm, "light terms: {} (sun {}, sky bins {})", lights.size(), has_sun ? "on" : "off",
+        lights.size() - (has_sun ? 1 : 0));
     say_memory();
     const double tau = s.bands.empty() ? 0 : s.bands[0].sigma_t * cmax * (1 - s.bands[0].albedo * s.bands[0].g);
     std::string advice = tau < 0.3 ? "optically thin: 'single' is close to exact"

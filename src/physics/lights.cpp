@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -15,7 +16,9 @@ std::vector<DirectionalLight> make_lights(const Scene& scene) {
         for (int b = 0; b < nb; ++b) sun.E0.push_back(band_value(scene.sun.irradiance, b));
         lights.push_back(sun);
     }
-    if (!scene.sky.radiance.empty()) {
+    // A sky dark in every band adds no terms (each would cost every model a full light pass).
+    const bool sky_lit = std::any_of(scene.sky.radiance.begin(), scene.sky.radiance.end(), [](double L) { return L != 0.0; });
+    if (sky_lit) {
         // Equal-solid-angle bins: n rings in mu = cos(zenith) in (0, 1] of equal width, each
         // with one bin at a golden-angle azimuth (a spiral), light travelling downward (-z).
         const int n = scene.sky.directions;

@@ -19,6 +19,7 @@ struct DirectionalLight {
 };
 
 // All light terms of a scene, sun first. Per-band values of size 1 are broadcast to all bands.
+// A sky whose radiance is 0 in every band gives no terms.
 std::vector<DirectionalLight> make_lights(const Scene& scene);
 
 // v[b] if v has one entry per band, v[0] if it has one value.

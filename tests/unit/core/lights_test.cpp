@@ -29,5 +29,15 @@ TEST(Lights, SunFirstThenSkyBinsWithTheRightIrradiance) {
     EXPECT_NEAR(horizontal, std::numbers::pi * 0.5, 1e-12);
 }
 
+TEST(Lights, ADarkSkyGivesNoTerms) {
+    Scene s;
+    s.bands = {BandOptics{"r"}, BandOptics{"g"}};
+    s.sky.directions = 8;
+    s.sky.radiance = {0.0, 0.0};
+    EXPECT_EQ(make_lights(s).size(), 1u);  // the sun alone
+    s.sky.radiance = {0.0, 0.1};           // lit in one band: all its directions
+    EXPECT_EQ(make_lights(s).size(), 9u);
+}
+
 }  // namespace
 }  // namespace nimbus
