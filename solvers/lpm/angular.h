@@ -42,8 +42,9 @@ double face_solid_angle(double x1, double x2, double y1, double y2);
 Vec3 face_direction(int f, double tu, double tv);
 
 // ∫ p_HG(ω·w) dω over the rectangle [x1,x2] x [y1,y2] of face f, for light travelling along the
-// unit vector w: midpoint squares refined toward the lobe's peak, so the cost grows only like
-// log(1/(1-|g|)) and the whole sphere integrates to 1 within 2e-5 for |g| up to 0.9999.
+// unit vector w: squares refined toward the lobe's peak (a 2 x 2 Gauss rule each), so the
+// cost grows like log(1/(1-|g|)) and the whole sphere integrates to 1 within 2e-5 for |g| up to
+// 0.9999.
 double hg_over_face_rectangle(double g, const Vec3& w, int f, double x1, double x2, double y1, double y2);
 
 class Angular {
