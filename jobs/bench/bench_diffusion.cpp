@@ -30,6 +30,7 @@
 #include "solvers/light/sun_transmittance.h"
 #include "src/core/error.h"
 #include "src/core/log.h"
+#include "src/core/mpi_init.h"
 #include "src/scene/medium.h"
 
 namespace {
@@ -86,7 +87,7 @@ Bare bare_pfmg_pcg(const Decomposition& d, const diffusion::DiffusionProblem& p)
 }  // namespace
 
 int main(int argc, char** argv) {
-    MPI_Init(&argc, &argv);
+    nimbus::init_mpi(&argc, &argv);
     int rank = 0, size = 1;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &size);

@@ -25,6 +25,7 @@
 #include "solvers/dom/iteration.h"
 #include "solvers/dom/transport_sweep.h"
 #include "src/core/error.h"
+#include "src/core/mpi_init.h"
 #include "src/scene/medium.h"
 
 namespace {
@@ -91,7 +92,7 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    MPI_Init(&argc, &argv);
+    nimbus::init_mpi(&argc, &argv);
     int rc = 0;
     try {
         rc = run(argc, argv);

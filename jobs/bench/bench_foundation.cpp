@@ -13,6 +13,7 @@
 #include "jobs/bench/bench_support.h"
 #include "solvers/light/sun_transmittance.h"
 #include "src/core/log.h"
+#include "src/core/mpi_init.h"
 #include "src/model/model.h"
 #include "src/render/raycaster.h"
 
@@ -20,7 +21,7 @@ using namespace nimbus;
 using bench::median;
 
 int main(int argc, char** argv) {
-    MPI_Init(&argc, &argv);
+    nimbus::init_mpi(&argc, &argv);
     int rank = 0, size = 1;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &size);

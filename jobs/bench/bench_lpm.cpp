@@ -18,6 +18,7 @@
 #include "solvers/light/sun_transmittance.h"
 #include "solvers/lpm/solve_band.h"
 #include "src/core/log.h"
+#include "src/core/mpi_init.h"
 
 using namespace nimbus;
 using bench::median;
@@ -30,7 +31,7 @@ static double cpu_seconds() {
 }
 
 int main(int argc, char** argv) {
-    MPI_Init(&argc, &argv);
+    nimbus::init_mpi(&argc, &argv);
     int rank = 0, size = 1;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &size);

@@ -22,6 +22,7 @@
 #include "solvers/light/sun_transmittance.h"
 #include "solvers/psf/psf_source.h"
 #include "src/core/log.h"
+#include "src/core/mpi_init.h"
 #include "src/model/model.h"
 #include "src/render/raycaster.h"
 
@@ -30,7 +31,7 @@ using bench::median;
 using bench::timed;
 
 int main(int argc, char** argv) {
-    MPI_Init(&argc, &argv);
+    nimbus::init_mpi(&argc, &argv);
     int rank = 0, size = 1;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &size);

@@ -14,6 +14,7 @@
 #include "src/cmd/commands.h"
 #include "src/core/error.h"
 #include "src/core/log.h"
+#include "src/core/mpi_init.h"
 
 namespace {
 
@@ -47,7 +48,7 @@ std::string usage_message(const CLI::App& app, const CLI::ParseError& e) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    MPI_Init(&argc, &argv);
+    nimbus::init_mpi(&argc, &argv);
     int rank = 0, size = 1;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &size);

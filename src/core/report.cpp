@@ -1,6 +1,7 @@
 #include "src/core/report.h"
 
 #include "src/core/bcast.h"
+#include "src/core/mpi_init.h"
 
 #include <sys/resource.h>
 
@@ -46,6 +47,7 @@ nlohmann::json Report::summarize(MPI_Comm comm) const {
     out["phases"] = phases;
     out["peak_memory_bytes_per_rank"] = mems;
     out["ranks"] = size;
+    if (!mpi_io_choice().empty()) out["mpi_io"] = mpi_io_choice();  // mpi_init.h
     // Values are rank 0's (they may differ per rank): broadcast so every rank returns the same
     // JSON, which collective writers (HDF5 attributes) require.
     out["values"] = nlohmann::json::parse(bcast_string(comm, 0, rank == 0 ? values_.dump() : std::string()));

@@ -7,6 +7,7 @@
 #include <cstdio>
 
 #include "src/core/log.h"
+#include "src/core/mpi_init.h"
 
 namespace {
 
@@ -31,7 +32,7 @@ private:
 }  // namespace
 
 int main(int argc, char** argv) {
-    MPI_Init(&argc, &argv);
+    nimbus::init_mpi(&argc, &argv);
     ::testing::InitGoogleTest(&argc, argv);
     int rank = 0;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);

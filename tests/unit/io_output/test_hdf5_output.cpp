@@ -15,6 +15,7 @@
 #include "tests/unit/io_output/sample_fields.h"
 #include "tests/support/scratch_dir.h"
 #include "src/core/error.h"
+#include "src/core/mpi_init.h"
 #include "tests/support/mpi_test.h"
 
 namespace nimbus {
@@ -62,6 +63,74 @@ INSTANTIATE_TEST_SUITE_P(Decompositions, Hdf5FieldRoundTrip,
                          [](const ::testing::TestParamInfo<Int3>& p) {
                              return p.param[2] == 0 ? "slabs_z" : "split_x";
                          });
+
+// Ranks that write interleaved pieces of a dataset (a split along x, 3 components per cell) is
+// where Open MPI 4.1's default collective-write component, fcoll/vulcan, wrote wrong cells
+// (mpi_init.h): with OMPI_MCA_fcoll=vulcan, 20 runs of 20 such files on 3 ranks each had
+// failures. One file is not enough to catch it; 20 in a row are.
+TEST(Hdf5Writer, InterleavedWritesStayExactOverManyFiles) {
+    ScratchDir dir("h5_interleaved");
+    const Grid grid = test::sample_grid();
+    Decomposition d(MPI_COMM_WORLD, grid.n, Int3{0, 1, 1});
+    const Field<double> flux = test::sample_field(d, 3, 0.125);
+    size_t bad_files = 0;
+    for (int rep = 0; rep < 20; ++rep) {
+        const std::string path = dir.file("rep" + std::to_string(rep) + ".h5");
+        {
+            Hdf5Writer w(d, grid, path);
+            w.write_field("flux_diffuse/r", flux, "W/m^2", "interleaved");
+            w.commit();
+        }
+        if (d.rank() != 0) continue;
+        const FieldData f = read_field(path, "fields/flux_diffuse/r");
+        ASSERT_EQ(f.values.size(), static_cast<size_t>(grid.cells() * 3));
+        size_t n = 0, mismatches = 0;
+        for_each_cell(grid.box(), [&](int i, int j, int k) {
+            for (int c = 0; c < 3; ++c, ++n)
+                if (f.values[n] != static_cast<float>(test::cell_value(i, j, k, c, 0.125))) ++mismatches;
+        });
+        if (mismatches > 0) ++bad_files;
+    }
+    EXPECT_EQ(bad_files, 0u) << "MPI-IO: " << mpi_io_choice();
+}
+
+#ifdef OPEN_MPI
+// init_mpi (the test main calls it, as the CLI does) selects fcoll dynamic_gen2 unless the user
+// chose: read back through the MPI tool interface what Open MPI actually uses.
+TEST(MpiInit, OpenMpiUsesTheSafeCollectiveWriteComponent) {
+    int provided = 0;
+    ASSERT_EQ(MPI_T_init_thread(MPI_THREAD_SINGLE, &provided), MPI_SUCCESS);
+    auto read_cvar = [](const char* wanted) {
+        int count = 0;
+        MPI_T_cvar_get_num(&count);
+        for (int i = 0; i < count; ++i) {
+            char name[256], desc[1024];
+            int name_len = sizeof name, desc_len = sizeof desc, verbosity, bind, scope;
+            MPI_Datatype type;
+            MPI_T_enum enumtype;
+            MPI_T_cvar_get_info(i, name, &name_len, &verbosity, &type, &enumtype, desc, &desc_len, &bind, &scope);
+            if (std::string(name) != wanted || type != MPI_CHAR) continue;
+            MPI_T_cvar_handle handle;
+            int n = 0;
+            MPI_T_cvar_handle_alloc(i, nullptr, &handle, &n);
+            std::string value(static_cast<size_t>(n) + 1, '\0');
+            MPI_T_cvar_read(handle, value.data());
+            MPI_T_cvar_handle_free(&handle);
+            return std::string(value.c_str());
+        }
+        return std::string("<no such variable>");
+    };
+    const std::string fcoll = read_cvar("fcoll");
+    MPI_T_finalize();
+    const std::string& choice = mpi_io_choice();
+    if (choice.find("(nimbus default)") != std::string::npos)
+        EXPECT_EQ(fcoll, kDefaultFcoll);
+    else if (choice.rfind("fcoll=", 0) == 0)
+        EXPECT_EQ("fcoll=" + fcoll + " (user)", choice);
+    else
+        EXPECT_EQ(choice.rfind("io=", 0), 0u) << choice;
+}
+#endif
 
 TEST(Hdf5Reader, ListsGroupsAndDatasets) {
     ScratchDir dir("h5_list");
