@@ -61,6 +61,9 @@ std::string OutputFiles::with_final_names(std::string message) const {
 void OutputFiles::commit() {
     if (committed_) throw Error("output files are already committed");
     committed_ = true;  // from here on, commit() itself cleans up after a failure
+    // No rank sees a final name before every rank has entered commit (and so is done with
+    // the files): without this, rank 0 could rename while another rank still checks them.
+    MPI_Barrier(comm_);
     std::string message;
     if (rank_of(comm_) == 0) {
         std::error_code ec;

@@ -36,9 +36,9 @@ public:
     // message with every temporary name replaced by its final name, so that a write error
     // names the file the user asked for.
     std::string with_final_names(std::string message) const;
-    // Collective: rank 0 renames every temporary to its final name, in the order added. If a
-    // rename fails it removes the files already renamed and the remaining temporaries, and
-    // every rank throws the same Error.
+    // Collective: once every rank has entered it, rank 0 renames every temporary to its final
+    // name, in the order added. If a rename fails it removes the files already renamed and the
+    // remaining temporaries, and every rank throws the same Error.
     void commit();
 
 private:
