@@ -34,6 +34,7 @@ FieldError field_error(const std::vector<double>& a, const std::vector<double>& 
             ++nz;
         }
     }
+    e.z_cells = nz;
     e.norm_b = std::sqrt(b2);
     e.abs_l2 = std::sqrt(diff2);
     if (stderr_b != nullptr) e.rms_z = nz > 0 ? std::sqrt(z2 / static_cast<double>(nz)) : 0.0;

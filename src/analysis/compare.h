@@ -5,7 +5,9 @@
 //   max relative      max |a - b| / max |b|             over the same cells
 //   RMS z             sqrt(mean(((a - b) / s_b)²))      where the reference has a standard
 //                                                       error s_b > 0 (Monte Carlo): ≈ 1 when a
-//                                                       agrees with b within b's noise
+//                                                       agrees with b within b's noise; cells with
+//                                                       s_b = 0 (no path reached them) are left
+//                                                       out and counted apart (z_cells)
 //   image RMSE        sqrt(mean over pixels and RGB of (a - b)²), relative: ||a - b|| / ||b||
 //   same medium       max |rho_a - rho_b| / max |rho_b| over all cells <= kSameMediumTolerance
 //
@@ -25,6 +27,7 @@ struct FieldError {
     double max_rel = 0.0;       // NaN when undefined
     double rms_z = -1.0;        // -1 when no standard error was given; NaN when undefined
     std::size_t cells = 0;      // cells compared (density > 0)
+    std::size_t z_cells = 0;    // of those, the cells in rms_z (s_b > 0; 0 without a standard error)
     double norm_b = 0.0;        // ||b||_2 over those cells
     double abs_l2 = 0.0;        // ||a - b||_2 over those cells (the field's units)
     double max_abs = 0.0;       // max |a - b| over those cells

@@ -3,7 +3,8 @@
 // error of fields/fluence_diffuse/<band> over cells with density > 0, and the RMS of
 // (a - b) / stderr when B has fields/fluence_diffuse_stderr/<band> (a Monte Carlo reference);
 // image RMSE and relative error when both images are given. Warns (and flags in --json) when
-// the density fields of A and B differ: runs of different media. A metric whose denominator is
+// the density fields or the cell sizes of A and B differ: runs of different media. RMS z leaves out
+// the cells where B's standard error is 0 and says how many it used. A metric whose denominator is
 // zero (a zero reference field, a black reference image; src/analysis/compare.h) is printed as
 // "undefined" with a line saying why and giving the absolute difference; in --json it is null
 // and the band (or image) gains "undefined": the reason. Rank 0 reads and prints; an error is
@@ -42,6 +43,16 @@ void sort_in_scene_order(const std::string& file, std::vector<std::string>& band
         return std::find(order.begin(), order.end(), name) - order.begin();
     };
     std::stable_sort(bands.begin(), bands.end(), [&](const std::string& x, const std::string& y) { return rank(x) < rank(y); });
+}
+
+// The cell edge in metres of the run that wrote `file` (its /scene attribute); 0 when the file
+// has no readable scene (written by another program).
+double cell_size_m(const std::string& file) {
+    try {
+        return load_scene_string(read_string_attribute(file, "/scene", "toml"), file).grid.h();
+    } catch (const Error&) {
+        return 0.0;
+    }
 }
 
 // The per-band scalar fields compare can assess (flux_diffuse is a vector field).
@@ -85,7 +96,12 @@ nlohmann::json compare_runs(const CompareArgs& args) {
                                 density.shape[2]));
     const double density_diff = max_rel_difference(density_a.values, density.values);
     out["density_max_rel_diff"] = density_diff;
-    out["same_medium"] = density_diff <= kSameMediumTolerance;
+    // The same densities on cells of another size are another medium (other optical depths).
+    const double h_a = cell_size_m(args.a), h_b = cell_size_m(args.b);
+    const bool same_cells = !(h_a > 0 && h_b > 0) || std::abs(h_a - h_b) <= kSameMediumTolerance * h_b;
+    if (h_a > 0) out["cell_size_m_a"] = h_a;
+    if (h_b > 0) out["cell_size_m_b"] = h_b;
+    out["same_medium"] = density_diff <= kSameMediumTolerance && same_cells;
     for (const std::string& band : bands) {
         const std::string path = field + "/" + band;
         if (!has_dataset(args.a, path)) throw Error(fmt::format("'{}' has no {} (the reference has)", args.a, path));
@@ -104,7 +120,7 @@ nlohmann::json compare_runs(const CompareArgs& args) {
         // NaN (undefined) is written as null.
         nlohmann::json j = {{"band", band},     {"rel_l2", e.rel_l2}, {"max_rel", e.max_rel},
                             {"cells", e.cells}, {"abs_l2", e.abs_l2}, {"max_abs", e.max_abs}};
-        if (with_stderr) j["rms_z"] = e.rms_z;
+        if (with_stderr) j["rms_z"] = e.rms_z, j["z_cells"] = e.z_cells;
         if (!e.undefined.empty()) j["undefined"] = e.undefined;
         out["bands"].push_back(j);
     }
@@ -142,6 +158,14 @@ void print_table(const nlohmann::json& r) {
                           metric(b["max_rel"].get<double>(), "{:.4e}"),
                           b.contains("rms_z") ? metric(b["rms_z"].get<double>(), "{:.3f}") : "-",
                           b["cells"].get<std::size_t>()));
+    // RMS z leaves out the cells where the reference has no standard error: say how many.
+    for (const auto& b : r["bands"])
+        if (b.contains("z_cells") && b["z_cells"].get<std::size_t>() > 0 &&
+            b["z_cells"].get<std::size_t>() < b["cells"].get<std::size_t>())
+            print(fmt::format("{}: RMS z over {} of the {} cells; the reference's standard error is 0 on the "
+                              "others (its paths did not reach them: run it with more photons)\n",
+                              b["band"].get<std::string>(), b["z_cells"].get<std::size_t>(),
+                              b["cells"].get<std::size_t>()));
     // Why a metric is undefined, and what can still be said: the absolute difference.
     for (const auto& b : r["bands"])
         if (b.contains("undefined"))
@@ -166,8 +190,8 @@ void add_compare_command(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand(
         "compare", "Report the error of run A against reference run B (HDF5 fields, optionally images).");
     cmd->add_option("A", args->a,
-                    "the run to assess: the HDF5 file nimbus run wrote (<scene>.h5; nimbus.h5 for the "
-                    "built-in scene)")
+                    "the run to assess: the HDF5 file nimbus run wrote (<output.dir>/<output.name>.h5; "
+                    "out/nimbus.h5 unless the scene or --out says otherwise)")
         ->required()
         ->check(CLI::ExistingFile);
     cmd->add_option("B", args->b, "the reference run's HDF5 file, e.g. a Monte Carlo run's")
@@ -198,7 +222,13 @@ void add_compare_command(CLI::App& app) {
             if (rank == 0) result = compare_runs(*args);
         });
         if (rank != 0) return;
-        if (!result["same_medium"].get<bool>())
+        if (result.contains("cell_size_m_a") && result.contains("cell_size_m_b") &&
+            std::abs(result["cell_size_m_a"].get<double>() - result["cell_size_m_b"].get<double>()) >
+                kSameMediumTolerance * result["cell_size_m_b"].get<double>())
+            log::warn("the cells of {} and {} differ in size ({:.6g} m against {:.6g} m): these are runs of different "
+                      "media, and the errors compare different problems",
+                      args->a, args->b, result["cell_size_m_a"].get<double>(), result["cell_size_m_b"].get<double>());
+        else if (!result["same_medium"].get<bool>())
             log::warn("the density fields of {} and {} differ (max relative difference {:.3g}): these are runs of "
                       "different media, and the errors compare different problems",
                       args->a, args->b, result["density_max_rel_diff"].get<double>());

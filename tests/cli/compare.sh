@@ -68,6 +68,7 @@ done
 
 # The table: one header (rank 0 only), a row per band, the image line.
 out=$(nim compare "$A" "$B" --image-a "$IA" --image-b "$IA2" 2>&1); code=$?
+echo "$out" > "$tmp/ab_table.txt"  # its RMS z note is checked against the JSON below
 check "table exits 0 (exit $code)" [ $code -eq 0 ]
 check "table header once" [ "$(echo "$out" | grep -c "fluence_diffuse of .* against reference")" -eq 1 ]
 check "table columns" bash -c 'echo "$1" | grep -q "band *rel L2 *max rel *RMS z *cells"' _ "$out"
@@ -139,6 +140,12 @@ with h5py.File(f"{tmp}/a/nimbus.h5") as fa, h5py.File(f"{tmp}/b/nimbus.h5") as f
         check(f"ab {band}: max_rel {j['max_rel']}", close(j["max_rel"], np.abs(a - b).max() / np.abs(b).max()))
         z = (a - b)[s > 0] / s[s > 0]
         check(f"ab {band}: rms_z {j['rms_z']}", close(j["rms_z"], np.sqrt(np.mean(z * z))))
+        # RMS z is over the cells with s_b > 0, and says so when that is not all of them
+        nz, nc = int((s > 0).sum()), int((rho > 0).sum())
+        check(f"ab {band}: z_cells {j['z_cells']} = {nz}", j["z_cells"] == nz > 0)
+        note = f"{band}: RMS z over {nz} of the {nc} cells; the reference's standard error is 0 on the others"
+        check(f"ab {band}: the table notes the cells RMS z leaves out iff there are any ({nz} of {nc})",
+              (note in open(f"{tmp}/ab_table.txt").read()) == (nz < nc))
         check(f"ab {band}: 0 < rel_l2 < 1", 0 < j["rel_l2"] < 1)
         check(f"ab {band}: abs_l2, max_abs", close(j["abs_l2"], np.linalg.norm(a - b)) and close(j["max_abs"], np.abs(a - b).max()))
         check(f"ab {band}: defined", "undefined" not in j)

@@ -82,6 +82,22 @@ if run_small a && run_small a2 && run_small b --set medium.density=2.0; then
   out=$("$nimbus" compare "$a" "$a2" --json 2>/dev/null)
   if echo "$out" | /usr/bin/python3 -c 'import json, sys; sys.exit(0 if json.load(sys.stdin)["same_medium"] is True else 1)'; then
     pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: compare --json flags one medium as different"; fi
+  # The same densities on larger cells are another medium too (the cell size from /scene).
+  if run_small c --set grid.cell_size=30; then
+    c=$tmp/c/nimbus.h5
+    check "compare: other cell size warns" 0 "the cells of .* differ in size (25 m against 30 m)" compare "$a" "$c"
+    out=$("$nimbus" compare "$a" "$c" --json 2>/dev/null)
+    if echo "$out" | /usr/bin/python3 -c 'import json, sys; r = json.load(sys.stdin); sys.exit(0 if r["same_medium"] is False and r["density_max_rel_diff"] == 0 and r["cell_size_m_b"] == 30 else 1)'; then
+      pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: compare --json does not flag another cell size"; echo "$out" | head -8; fi
+  else
+    fail=$((fail + 1)); echo "FAIL: the small run with other cells did not run"
+  fi
+  # A reference whose few paths left cells unreached: RMS z is over the others, and says so.
+  if run_small few --set model.montecarlo.photons=300 --set model.montecarlo.batches=4; then
+    check "compare: RMS z over the reached cells" 0 "r: RMS z over [0-9]* of the [0-9]* cells; the reference's standard error is 0 on the others" compare "$a" "$tmp/few/nimbus.h5"
+  else
+    fail=$((fail + 1)); echo "FAIL: the small run with few photons did not run"
+  fi
 else
   fail=$((fail + 1)); echo "FAIL: the small runs for compare did not run"
 fi

@@ -23,6 +23,8 @@ TEST(Compare, RmsZUsesTheReferenceStandardError) {
     const std::vector<double> b{1.0, 2.0, 3.0}, a{1.5, 1.0, 3.0}, rho{1, 1, 1}, s{0.5, 0.5, 0.0};
     const FieldError e = field_error(a, b, rho, &s);
     EXPECT_DOUBLE_EQ(e.rms_z, std::sqrt((1.0 + 4.0) / 2.0));  // z = 1, -2; the s = 0 cell skipped
+    EXPECT_EQ(e.cells, 3u);
+    EXPECT_EQ(e.z_cells, 2u);  // and counted apart, so that compare can say so
 }
 
 // (A zero reference, undefined metrics: tests/unit/analysis/zero_reference_test.cpp.)
