@@ -6,6 +6,7 @@
 #include <petscversion.h>
 
 #include <filesystem>
+#include <vector>
 #include <fstream>
 
 #include "io/output/hdf5_writer.h"
@@ -26,14 +27,38 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Rank 0 creates the output folder and checks it is writable; every rank fails together.
-void prepare_output_dir(MPI_Comm comm, const std::string& dir) {
+// The output folders a run created (rank 0), removed again if the run fails before its outputs
+// are committed, so that a failed run leaves no empty folder behind. Only folders that are empty
+// then are removed (fs::remove does not remove a folder with files), deepest first.
+class CreatedFolders {
+public:
+    void add(const fs::path& p) { created_.push_back(p); }
+    void keep() { created_.clear(); }
+    ~CreatedFolders() {
+        std::error_code ec;
+        for (auto it = created_.rbegin(); it != created_.rend(); ++it) fs::remove(*it, ec);
+    }
+
+private:
+    std::vector<fs::path> created_;  // outermost first
+};
+
+// Rank 0 creates the output folder and checks it is writable; every rank fails together. The
+// folders it had to create are added to `created`.
+void prepare_output_dir(MPI_Comm comm, const std::string& dir, CreatedFolders& created) {
     int rank = 0;
     MPI_Comm_rank(comm, &rank);
     std::string msg;
     if (rank == 0) {
-        std::error_code ec;
+        std::error_code ec, ec_probe;
+        std::vector<fs::path> missing;  // innermost first
+        fs::path p = fs::absolute(dir, ec_probe).lexically_normal();
+        if (p.filename().empty()) p = p.parent_path();  // "out/" -> "out"
+        for (; !p.empty() && p != p.parent_path() && !fs::exists(p, ec_probe); p = p.parent_path())
+            missing.push_back(p);
         fs::create_directories(dir, ec);
+        for (auto it = missing.rbegin(); it != missing.rend(); ++it)
+            if (fs::is_directory(*it, ec_probe)) created.add(*it);
         const fs::path probe = fs::path(dir) / ".nimbus_write_test";
         std::ofstream f(probe);
         if (ec || !f) msg = fmt::format("output folder '{}' cannot be created or is not writable", dir);
@@ -146,7 +171,8 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
         // Scenes built in code get the checks a scene file gets (ranges, camera sees the domain).
         scene.validate();
     });
-    if (scene.output.hdf5 || scene.output.image) prepare_output_dir(comm, scene.output.dir);
+    CreatedFolders created;  // removed again unless the outputs are committed
+    if (scene.output.hdf5 || scene.output.image) prepare_output_dir(comm, scene.output.dir, created);
 
     const Decomposition d(comm, scene.grid.n, scene.grid.process_grid, scene.grid.periodic);
     log_scene(scene, d, *model);
@@ -226,6 +252,7 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
         ScopedTimer t(report, "output/commit");
         files.commit();
     }
+    created.keep();
     nlohmann::json summary = summarize();
     // Rank 0's clock, so that the report is the same on every rank.
     double total = wall_time() - t_start;

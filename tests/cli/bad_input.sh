@@ -141,5 +141,21 @@ if [ "$np" -gt 1 ] && "$nimbus" info --set "grid.n=[8,8,8]" 2>&1 | grep -q "mode
   expect_error "model lpm needs slabs along z" "${small[@]}" --set 'model.name="lpm"' --set "grid.process_grid=[2,1,1]"
 fi
 
+# A run that fails after it created its output folder (here at the periodic-z check, after the
+# folder's write test) removes the folders it created, and only those: a folder that existed
+# stays, with what was in it.
+periodic_sun=("${small[@]}" --set 'model.name="single"' --set "grid.periodic=[false,false,true]" --set 'light.method="exact"')
+mkdir -p "$tmp/existing" && touch "$tmp/existing/keep.txt"
+for out_dir in "$tmp/new/deeper" "$tmp/existing/sub/" "$tmp/existing"; do
+  out=$(timeout 120 "$mpiexec" -n "$np" "$nimbus" run "${periodic_sun[@]}" --out "$out_dir" 2>&1); code=$?
+  if [ $code -ne 0 ] && echo "$out" | grep -q "is not horizontal" && [ ! -e "$tmp/new" ] && [ ! -e "$tmp/existing/sub" ] &&
+     [ -f "$tmp/existing/keep.txt" ] && [ "$(ls -A "$tmp/existing")" = keep.txt ]; then
+    pass=$((pass + 1))
+  else
+    fail=$((fail + 1)); echo "FAIL: a failed run with --out $out_dir left folders behind or removed one (exit $code)"
+    ls -laR "$tmp/new" "$tmp/existing" 2>&1 | head; echo "$out" | tail -3
+  fi
+done
+
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]
