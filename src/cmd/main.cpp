@@ -69,6 +69,14 @@ int main(int argc, char** argv) {
     nimbus::cmd::add_run_command(app);
     nimbus::cmd::add_info_command(app);
     nimbus::cmd::add_compare_command(app);
+    // A subcommand's --help lists only its own options: name the global ones there too.
+    for (CLI::App* sub : app.get_subcommands({})) {
+        const std::string footer = sub->get_footer();
+        sub->footer((footer.empty() ? "" : footer + "\n\n") +
+                    "Global options, before or after the command: --log-level trace|debug|info|warn|error|off "
+                    "(default info; debug adds the solvers' per-iteration lines), --log-all-ranks (every rank "
+                    "logs, prefixed with its rank); see nimbus --help.");
+    }
     app.parse_complete_callback([&] { nimbus::log::init(rank, level, all_ranks); });
 
     int code = 0;

@@ -483,8 +483,9 @@ ForwardResult budget_run(const Slab& slab, int batches, std::int64_t per_batch, 
     return trace_forward(slab.d, slab.m, {beam(0.8)}, o);
 }
 
-// r (a budget run) equals a budget-free run of the photons and batches it reports: the same
-// photons, so the same fields, counters and standard errors to round-off, the same collisions.
+// r (a budget run of one light term) equals a budget-free run of the photons and batches it
+// reports: the same photons, so the same fields, counters and standard errors to round-off, the
+// same collisions. (With several terms the per-term rounding of the total may differ.)
 void expect_equals_budget_free_run(const Slab& slab, const ForwardResult& r) {
     MonteCarloOptions same = options(r.photons);
     same.batches = r.batches;
