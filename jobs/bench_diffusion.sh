@@ -5,11 +5,14 @@
 # BENCH_MEDIUM=smooth runs the cumulus without edge noise; BENCH_REPS=3 prints medians of 3 runs
 # (bare and solvers alternating).
 set -euo pipefail
+source "$(dirname "$0")/bench_args.sh"
 BUILD=${1:-build}
 shift || true
 SIZES=${*:-64 128}
 BIN="$BUILD/bin/bench_diffusion"
-[ -x "$BIN" ] || { echo "missing $BIN: cmake --build $BUILD --target bench_diffusion" >&2; exit 1; }
+need_binary "$BIN" bench_diffusion "$BUILD"
+for n in $SIZES; do need_count "N" "$n"; done
+[ -z "${BENCH_REPS:-}" ] || need_count BENCH_REPS "$BENCH_REPS"
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 for n in $SIZES; do
   for np in 1 2; do

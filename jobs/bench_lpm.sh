@@ -15,8 +15,11 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source jobs/env.sh
+source jobs/bench_args.sh
 bin="${1:-build}/bin/bench_lpm"
 ref="${2:-}"
+need_binary "$bin" bench_lpm "${1:-build}"
+if [[ -n "$ref" && ! -x "$ref" ]]; then echo "$bench_script: the reference bench_lpm '$ref' is not an executable" >&2; exit 1; fi
 header() {
   echo "| grid | maps | k | R | iterations | ranks | wall s | CPU s (max rank) | CPU s per map sweep | CPU ns per ray step |"
   echo "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"

@@ -12,20 +12,31 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source jobs/env.sh
+source jobs/bench_args.sh
 bin="${1:-build}/bin/nimbus"
 photons="${2:-4000000}"
 reps="${3:-3}"
 ref="${4:-}"
-[ -x "$bin" ] || { echo "missing $bin: cmake --build ${1:-build} --target nimbus" >&2; exit 1; }
+need_binary "$bin" nimbus "${1:-build}"
+need_count photons "$photons"
+need_count reps "$reps"
+if [[ -n "$ref" && ! -x "$ref" ]]; then echo "$bench_script: the reference nimbus '$ref' is not an executable" >&2; exit 1; fi
+log=$(mktemp)
+trap 'rm -f "$log"' EXIT
 
-# One run: prints "trace_seconds paths/s/core collisions/s/core segments/collision".
+# One run: prints "trace_seconds paths/s/core collisions/s/core segments/collision"; a failed
+# run stops the script with the end of nimbus's log.
 run() {
-  mpiexec -n "$2" "$1" run --set model.montecarlo.photons="$photons" --set output.image=false \
-    --set output.hdf5=false --set light.method=sweep 2>&1 | awk '
+  if ! mpiexec -n "$2" "$1" run --set model.montecarlo.photons="$photons" --set output.image=false \
+         --set output.hdf5=false --set light.method=sweep > "$log" 2>&1; then
+    { echo "$bench_script: $1 on $2 rank(s) failed:"; tail -5 "$log"; } >&2
+    exit 1
+  fi
+  awk '
       /collisions in/ { for (i = 1; i <= NF; ++i) if ($i == "tracing") t = $(i + 1) }
       /paths\/s\/core/ { for (i = 1; i <= NF; ++i) { if ($i == "paths/s/core,") p = $(i - 1);
                           if ($i == "collisions/s/core") c = $(i - 1); if ($i == "tallied") s = $(i - 1) } }
-      END { print t, p, c, s }'
+      END { print t, p, c, s }' "$log"
 }
 median() { sort -g | awk '{ v[NR] = $1 } END { print v[int((NR + 1) / 2)] }'; }
 
@@ -38,7 +49,8 @@ for np in 1 2; do
   for ((r = 0; r < reps; ++r)); do
     for v in "${versions[@]}"; do
       b="$bin"; [[ "$v" == ref ]] && b="$ref"
-      read -r t p c s < <(run "$b" "$np")
+      out=$(run "$b" "$np")  # set -e: a failed run ends the script (run printed why)
+      read -r t p c s <<<"$out"
       T[$v$np]+="$t "; P[$v$np]+="$p "; C[$v$np]+="$c "; S[$v$np]+="$s "
     done
   done

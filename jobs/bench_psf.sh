@@ -7,8 +7,11 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source jobs/env.sh
+source jobs/bench_args.sh
 build=${1:-build}
 n=${2:-128}; w=${3:-1920}; h=${4:-1080}; reps=${5:-3}
+need_binary "$build/bin/bench_psf" bench_psf "$build"
+need_count N "$n"; need_count W "$w"; need_count H "$h"; need_count repeats "$reps"
 echo "| grid | image | ranks | light terms | pyramid s | psf preprocess s | single render s | psf render s | psf / single |"
 echo "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"
 rows=()

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Speed against error (issue 3 item 5): every model on every scene, against a Monte Carlo reference.
+r"""Speed against error (issue 3 item 5): every model on every scene, against a Monte Carlo reference.
 
 For each scene: one long Monte Carlo reference run, then one run per model setting; each run is
 compared with `nimbus compare --json` against the reference (relative L2 and max relative error
@@ -50,6 +50,21 @@ def run_nimbus(args, scene, sets, out_dir):
             raw = f["run"].attrs["report"]
             report = json.loads(raw.decode() if isinstance(raw, bytes) else raw)
     return wall, report
+
+
+def preflight(args, scene, sets):
+    """`nimbus info` with the run's settings on args.ranks ranks: the checks a run makes before it
+    computes, in about a second, so that a bad model or key stops the study before the long
+    reference run. Returns None if the scene would run, else nimbus's error line."""
+    cmd = ["mpiexec", "-n", str(args.ranks), "--oversubscribe", "--bind-to", "none", args.nimbus, "info", scene]
+    for s in sets:
+        cmd += ["--set", s]
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    r = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
+    if r.returncode == 0:
+        return None
+    errors = [l.strip() for l in r.stderr.splitlines() if "error:" in l]
+    return errors[0] if errors else f"exit {r.returncode}: {r.stderr.strip()[-300:]}"
 
 
 def compare(args, run_dir, ref_dir):
@@ -128,6 +143,16 @@ def main():
                    help="keep OUT/<scene>/reference/nimbus.h5 when it exists (same scene and settings!)")
     args = p.parse_args()
     models = [parse_model(m) for m in args.model]
+    if not (os.path.isfile(args.nimbus) and os.access(args.nimbus, os.X_OK)):
+        raise SystemExit(f"study: no nimbus executable at {args.nimbus} (build it: bash jobs/build.sh; or --nimbus PATH)")
+    # Every run's settings checked before anything long runs: a model that does not support a
+    # scene is skipped later with its reason; any other refusal stops the study here.
+    for scene in args.scenes:
+        ref_sets = args.set + ["model.name=montecarlo", f"model.montecarlo.photons={args.reference_photons}"] + args.reference_set
+        for label, sets in [("reference", ref_sets)] + [(label, args.set + sets) for label, sets in models]:
+            error = preflight(args, scene, sets)
+            if error and not (label != "reference" and "does not support" in error):
+                raise SystemExit(f"study: {scene} {label}: {error}")
     os.makedirs(args.out, exist_ok=True)
 
     rows = []

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Installs what is missing, builds, and runs the whole test suite (unit, MPI at 1 and 2 ranks,
+# Installs what is missing, builds, and runs the whole test suite (unit, MPI at 1, 2 and 3 ranks,
 # verification) with ctest.
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -1,7 +1,7 @@
 // Benchmark of the discrete-ordinates sweep (solvers/dom): grind time in LLNL Kripke's
 // definition, total iteration time / (zones x directions x groups x iterations), in ns.
 //
-//   mpiexec -n 2 ./bench_dom 64 cube96 [iterations=5] [legendre=4] [tile_rows=8] [octant_overlap=2]
+//   mpiexec -n 2 ./bench_dom 64 cube96|S<n> [iterations=5] [legendre=4] [tile_rows=8] [octant_overlap=8]
 //   (jobs/bench_dom.sh runs the table: 32³-96³, S8, S16, cube96; 1 and 2 ranks)
 //
 // Problem (Kripke-like): a homogeneous cube of N³ unit cells, sigma_t such that the cube is 10
@@ -43,10 +43,15 @@ int run(int argc, char** argv) {
     DomOptions o;
     if (quad == "cube96") {
         o.quadrature = "cube96";
-    } else {
+    } else if (quad.size() > 1 && quad[0] == 'S' &&
+               quad.find_first_not_of("0123456789", 1) == std::string::npos) {
         o.quadrature = "level-symmetric";
         o.order = std::atoi(quad.c_str() + 1);
+    } else {
+        throw Error("quadrature '" + quad + "': cube96 or S<order> (level-symmetric, e.g. S8)");
     }
+    if (n < 1 || iterations < 1 || L < 0 || tile_rows < 1 || overlap < 1)
+        throw Error("N, iterations, tile_rows and octant_overlap must be >= 1 and legendre >= 0");
     o.legendre_order = L;
     o.tile_rows = tile_rows;
     o.octant_overlap = overlap;
