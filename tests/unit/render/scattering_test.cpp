@@ -7,8 +7,9 @@
 //   I = I0 e^{-kappa L} + kappa a E0 p(mu) e^{-u0} (1 - e^{-(kappa + beta) L}) / (kappa + beta)
 //     + a [Phi/(4π) + (3g/4π) F·(-d)] (1 - e^{-kappa L}),      mu = w·(-d),
 // for a constant diffuse fluence Phi and flux F. single_unshadowed drops e^{-u0 - beta s}
-// and the diffuse term. Tolerance 1e-3 relative: trilinear reconstruction of J between cell
-// centres and the step rule are second order in the cell optical depth (0.035 here).
+// and the diffuse term. Trilinear reconstruction of J between cell centres and the step rule
+// are second order in the cell optical depth (0.035 here: (kappa h)² = 1.2e-3); measured max
+// relative error 6.0e-5 (shadowed), 3.2e-5 (unshadowed), checked at 3e-4.
 #include <gtest/gtest.h>
 
 #include <iostream>
@@ -85,7 +86,7 @@ void check_slab(RenderMode mode) {
             }
             const double got = image.pixel(x, y)[0];
             max_err = std::max(max_err, std::abs(got - want) / want);
-            EXPECT_TRUE(test::close_rel(got, want, 1e-3))
+            EXPECT_TRUE(test::close_rel(got, want, 3e-4))
                 << "pixel " << x << "," << y << ": " << got << " vs " << want;
         }
     EXPECT_GT(hits, 250);

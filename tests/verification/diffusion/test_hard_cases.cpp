@@ -60,12 +60,15 @@ void run_case(const Case& c) {
     EXPECT_TRUE(finite) << c.name;
     EXPECT_LE(its, kMaxIterations) << c.name;
     EXPECT_LE(res, opt.tolerance) << c.name;
-    EXPECT_GE(fmin, 0.0) << c.name;
+    EXPECT_GE(fmin, 0.0) << c.name;  // the written fluence: negative P1 values are clamped
     // P1 goes negative only in the boundary layer lit by the forward-peaked source (cells with
-    // a Marshak face; g = 0.99: 9 cells, min 4πU = -5.8e-3; cloud touching the boundary: 3
-    // cells, -2.9e-2; the output clamps them to 0 and reports the counts); inside, at most
-    // solver round-off, in every case (with delta-Eddington sources also for kappa h = 1e-4
-    // and g = 0.99).
+    // a Marshak face; g = 0.99: 9 cells, min 4πU = -5.8e-3 = -0.6% of the maximum; cloud
+    // touching the boundary: 3 cells, -2.9e-2 = -3.3%; the output clamps them to 0 and reports
+    // the counts), and only slightly (bound: 10% of the maximum); inside, at most solver
+    // round-off, in every case (with delta-Eddington sources also for kappa h = 1e-4 and
+    // g = 0.99).
+    const double min_surface = 4 * std::numbers::pi * sys["min_U"].get<double>();
+    EXPECT_GE(min_surface, -0.1 * fmax) << c.name;
     const double min_inside = 4 * std::numbers::pi * sys["min_U_interior"].get<double>();
     EXPECT_GE(min_inside, -opt.tolerance * fmax) << c.name;
     EXPECT_GT(fmax, 0.0) << c.name;

@@ -48,8 +48,10 @@ double sphere_in(int n, int i, int j, int k) {
     return x * x + y * y + z * z <= 81.0 ? 1.0 : 0.0;
 }
 
-// With ||b - A x|| <= tol ||b||, two solutions differ by at most ~cond(A) tol; for this cloud
-// the measured difference is ~1e-9 relative at tol = 1e-10, checked against 100 tol.
+// With ||b - A x|| <= tol ||b||, two solutions differ by at most ~cond(A) tol, which is what
+// is checked (100 tol). Measured: 1.9e-16 relative on 2 and 3 ranks at tol = 1e-10 (hypre's
+// PFMG-PCG takes the same iterates on any split of this grid, to round-off); the bound is the
+// guarantee, not the measurement.
 TEST(DiffusionParallel, WorldEqualsSelf) {
     const double tol = 1e-10;
     Report rw, rs;

@@ -74,11 +74,13 @@ SlabErrors run_slab(double g, int nz, int order, int L, const char* method = "ds
 //              S16: R err +3.9e-4, T err +2.0e-5, fluence max err 1.8e-2
 //   g = 0.85, delta-M  S8 L=7: R err +1.3e-3, T err +7.1e-4, fluence 2.6e-2
 //                      S12 L=11: R err +4.5e-4, T err -2.3e-4, fluence 8.1e-3
-// The tolerances below are about twice the finer set's error; the coarser set must be worse.
+// The tolerances below are 2-4 times the finer set's error (the solve is deterministic, so
+// the margin covers only round-off across rank counts and compilers; T's error is so small
+// that its bound is 1e-4); the coarser set must be worse.
 TEST(DomSlab, IsotropicMatchesReference) {
     const SlabErrors c = run_slab(0.0, 64, 8, 0), f = run_slab(0.0, 64, 16, 0);
-    EXPECT_LT(std::abs(f.R - f.R_ref), 1e-3);
-    EXPECT_LT(std::abs(f.T - f.T_ref), 1e-3);
+    EXPECT_LT(std::abs(f.R - f.R_ref), 8e-4);
+    EXPECT_LT(std::abs(f.T - f.T_ref), 1e-4);
     EXPECT_LT(f.fluence, 0.03);
     EXPECT_LT(f.fluence, 0.5 * c.fluence);
     EXPECT_LT(std::abs(f.R - f.R_ref), std::abs(c.R - c.R_ref));
@@ -89,8 +91,8 @@ TEST(DomSlab, IsotropicMatchesReference) {
 //           S12 L=11: R err -1.05e-4, T err -3.6e-5, fluence 8.4e-3 (16 iterations).
 TEST(DomSlab, StronglyForwardPeakedHgMatchesReference) {
     const SlabErrors c = run_slab(0.95, 64, 8, 7), f = run_slab(0.95, 64, 12, 11);
-    EXPECT_LT(std::abs(f.R - f.R_ref), 1e-3);
-    EXPECT_LT(std::abs(f.T - f.T_ref), 1e-3);
+    EXPECT_LT(std::abs(f.R - f.R_ref), 3e-4);
+    EXPECT_LT(std::abs(f.T - f.T_ref), 1e-4);
     EXPECT_LT(f.fluence, 0.017);
     EXPECT_LT(f.fluence, c.fluence);
 }
@@ -98,7 +100,7 @@ TEST(DomSlab, StronglyForwardPeakedHgMatchesReference) {
 TEST(DomSlab, ForwardPeakedHgMatchesReference) {
     const SlabErrors c = run_slab(0.85, 64, 8, 7), f = run_slab(0.85, 64, 12, 11);
     EXPECT_LT(std::abs(f.R - f.R_ref), 1e-3);
-    EXPECT_LT(std::abs(f.T - f.T_ref), 1e-3);
+    EXPECT_LT(std::abs(f.T - f.T_ref), 5e-4);
     EXPECT_LT(f.fluence, 0.015);
     EXPECT_LT(f.fluence, 0.5 * c.fluence);
     EXPECT_LT(std::abs(f.R - f.R_ref), std::abs(c.R - c.R_ref));
@@ -112,12 +114,12 @@ TEST(DomSlab, ForwardPeakedHgMatchesReference) {
 //   g = -0.9  S8 L=7: R err +1.3e-3, T err +2.6e-3, fluence 5.6e-2 (41)
 //             S12 L=11: R err -3.3e-3, T err +5.6e-4, fluence 3.8e-2 (38)
 // At g = -0.9 the truncated series is the error (chi_12 = 0.28 is cut off); the tolerances are
-// about twice the finer set's error, and the finer set must be better in the fluence.
+// 2-3 times the finer set's error, and the finer set must be better in the fluence.
 TEST(DomSlab, BackscatteringHgMatchesReference) {
     struct Case {
         double g, R_tol, T_tol;
     };
-    for (const Case& k : {Case{-0.5, 1e-3, 2e-3}, Case{-0.9, 7e-3, 2e-3}}) {
+    for (const Case& k : {Case{-0.5, 2e-4, 2e-3}, Case{-0.9, 7e-3, 1.2e-3}}) {
         const SlabErrors c = run_slab(k.g, 64, 8, 7), f = run_slab(k.g, 64, 12, 11);
         EXPECT_LT(std::abs(f.R - f.R_ref), k.R_tol) << "g " << k.g;
         EXPECT_LT(std::abs(f.T - f.T_ref), k.T_tol) << "g " << k.g;

@@ -61,9 +61,10 @@ void print(const char* what, const SlabErrors& e) {
 
 // Isotropic, tau 1, albedo 0.9, sun overhead and at 60°. Errors come from the map quadrature
 // (p x p directions per face, uniform on the cube face) and the cell-constant U; measured:
-// R and T within 0.4%, the profile within 2% (relative L2) at p = 9, against 3% and 12-15% at
-// p = 3: the error falls about as 1/p² (a midpoint rule on the cube face), so p = 9 must be at
-// least 5x better than p = 3; tolerances are the measured p = 9 errors with a 1.5-5x margin.
+// R and T within 0.3% (0.15%/0.11% overhead, 0.26%/0.25% at 60°), the profile within 1.5%
+// (relative L2) at p = 9, against 3% and 12-15% at p = 3: the error falls about as 1/p² (a
+// midpoint rule on the cube face), so p = 9 must be at least 5x better than p = 3; tolerances
+// are the measured p = 9 errors with a 2-2.5x margin (the solve is deterministic).
 TEST(LpmSlab, IsotropicAgainstReference) {
     for (double mu0 : {1.0, 0.5}) {
         SlabErrors worst{};
@@ -71,8 +72,8 @@ TEST(LpmSlab, IsotropicAgainstReference) {
             const SlabErrors e = run_slab(1.0, 0.9, 0.0, mu0, lpm_options(p, 1, 8, 1e-4));
             print(p == 3 ? "iso p 3" : "iso p 9", e);
             if (p == 9) {
-                EXPECT_NEAR(e.R, e.R_ref, 0.02 * e.R_ref);
-                EXPECT_NEAR(e.T, e.T_ref, 0.02 * e.T_ref);
+                EXPECT_NEAR(e.R, e.R_ref, 0.006 * e.R_ref);
+                EXPECT_NEAR(e.T, e.T_ref, 0.006 * e.T_ref);
                 EXPECT_LT(e.profile_rel_l2, 0.03);
                 EXPECT_LT(e.profile_rel_l2, worst.profile_rel_l2 / 5.0);
             }
