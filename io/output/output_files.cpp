@@ -65,23 +65,52 @@ void OutputFiles::commit() {
     // the files): without this, rank 0 could rename while another rank still checks them.
     MPI_Barrier(comm_);
     std::string message;
-    if (rank_of(comm_) == 0) {
-        std::error_code ec;
-        size_t renamed = 0;
-        for (; renamed < files_.size(); ++renamed) {
-            const auto& [tmp, final_path] = files_[renamed];
-            fs::rename(tmp, final_path, ec);
-            if (ec) {
-                message = "cannot write output file '" + final_path + "': " + ec.message();
-                break;
-            }
+    if (rank_of(comm_) == 0) message = replace_finals();
+    check_collective(comm_, message.empty(), message);
+}
+
+// Rank 0's part of commit(): empty on success, else the error, with the folder as it was (the
+// previous run's files restored under their names, no temporary and no backup left).
+std::string OutputFiles::replace_finals() {
+    std::error_code ec;
+    std::string message;
+    // A final name that is a folder (or anything but a file) would refuse the rename: say so
+    // before touching anything.
+    for (const auto& [tmp, final_path] : files_)
+        if (fs::exists(fs::symlink_status(final_path, ec)) && !fs::is_regular_file(fs::symlink_status(final_path, ec))) {
+            message = "cannot write output file '" + final_path + "': it exists and is not a file";
+            break;
         }
-        if (!message.empty()) {
-            for (size_t n = 0; n < files_.size(); ++n)
-                fs::remove(n < renamed ? files_[n].second : files_[n].first, ec);
+    // Existing finals (a previous run's) are moved aside, so that a failed rename can put them
+    // back: the folder then holds either this run's whole set or the previous files.
+    std::vector<bool> backed_up(files_.size(), false);
+    const auto backup = [&](size_t n) { return files_[n].second + "." + token_ + ".old"; };
+    for (size_t n = 0; message.empty() && n < files_.size(); ++n) {
+        if (!fs::exists(files_[n].second, ec)) continue;
+        fs::rename(files_[n].second, backup(n), ec);
+        if (ec) message = "cannot replace output file '" + files_[n].second + "': " + ec.message();
+        else backed_up[n] = true;
+    }
+    size_t renamed = 0;
+    for (; message.empty() && renamed < files_.size(); ++renamed) {
+        const auto& [tmp, final_path] = files_[renamed];
+        fs::rename(tmp, final_path, ec);
+        if (ec) {
+            message = "cannot write output file '" + final_path + "': " + ec.message();
+            break;
         }
     }
-    check_collective(comm_, message.empty(), message);
+    std::error_code ignored;
+    if (!message.empty()) {
+        for (size_t n = 0; n < files_.size(); ++n) {
+            fs::remove(n < renamed ? files_[n].second : files_[n].first, ignored);
+            if (backed_up[n]) fs::rename(backup(n), files_[n].second, ignored);
+        }
+        return message;
+    }
+    for (size_t n = 0; n < files_.size(); ++n)
+        if (backed_up[n]) fs::remove(backup(n), ignored);
+    return {};
 }
 
 }  // namespace nimbus

@@ -37,11 +37,15 @@ public:
     // names the file the user asked for.
     std::string with_final_names(std::string message) const;
     // Collective: once every rank has entered it, rank 0 renames every temporary to its final
-    // name, in the order added. If a rename fails it removes the files already renamed and the
-    // remaining temporaries, and every rank throws the same Error.
+    // name, in the order added, replacing files of those names (a previous run's). If a final
+    // name is not a file, or a rename fails, the folder is left as it was: the files already
+    // renamed and the remaining temporaries are removed, the previous files restored, and every
+    // rank throws the same Error.
     void commit();
 
 private:
+    std::string replace_finals();  // rank 0's part of commit(); the error, or empty
+
     MPI_Comm comm_;
     std::string token_;
     std::vector<std::pair<std::string, std::string>> files_;  // {temporary, final}

@@ -108,6 +108,17 @@ void info(const RunOptions& opts) {
     double cmax = 0, csum = 0, ccount = 0;
     for (double c : colsum) { cmax = std::max(cmax, c); if (c > 0) { csum += c; ccount += 1; } }
 
+    // The checks a run makes once the density exists, before its light pass (pipeline.cpp): a
+    // scene a run would refuse gets the run's one-line error and no description.
+    Medium m;
+    m.grid = make_grid(s.grid);
+    m.bands = s.bands;
+    m.rho = std::move(rho);
+    check_light_method(d, s.light.method);
+    check_volume_sources(volume_sources(s), m.rho, d);
+    make_model(s.model)->check(s, d, m);
+    check_lights_leave(d, make_lights(s));  // after the model's own, more specific refusals
+
     say_grid();
     say(comm, "medium: {}; {:.1f}% of cells non-empty; {}", to_string(s.medium.kind),
               100.0 * filled / static_cast<double>(d.global().cells()),
@@ -138,15 +149,6 @@ void info(const RunOptions& opts) {
                              s.sources.size(), tau < 0.3 ? "thin" : tau < 3 ? "intermediate" : "thick");
     say(comm, "models in this build: {}; this scene is {}", fmt::format("{}", fmt::join(available_models(), ", ")), advice);
     say(comm, "model asked for: '{}'", s.model.name);
-    // The checks a run makes once the density exists, before its light pass (pipeline.cpp).
-    Medium m;
-    m.grid = make_grid(s.grid);
-    m.bands = s.bands;
-    m.rho = std::move(rho);
-    check_light_method(d, s.light.method);
-    check_volume_sources(volume_sources(s), m.rho, d);
-    make_model(s.model)->check(s, d, m);
-    check_lights_leave(d, make_lights(s));  // after the model's own, more specific refusals
 }
 
 }  // namespace

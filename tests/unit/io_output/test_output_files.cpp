@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -104,6 +105,68 @@ TEST(OutputFiles, FailedRenameRollsBackTheWholeSet) {
                             "cannot write output file '" + dir.file("c.txt") + "'");
     if (test::world_rank() == 0) {
         EXPECT_EQ(listing(dir.path()), std::vector<std::string>{"c.txt"});
+    }
+}
+
+// The contents of a small file.
+std::string slurp(const std::string& path) {
+    std::ifstream f(path);
+    return std::string(std::istreambuf_iterator<char>(f), {});
+}
+
+// A previous run's files are replaced on success, and survive a failed commit: the folder then
+// holds the previous set as it was (it used to lose the files renamed over before the failure).
+TEST(OutputFiles, CommitReplacesAPreviousRunOrLeavesItWhole) {
+    ScratchDir dir("outfiles_previous");
+    const std::string fa = dir.file("a.txt"), fb = dir.file("b.txt");
+    if (test::world_rank() == 0) std::ofstream(fa) << "old a", std::ofstream(fb) << "old b";
+    {
+        // b's temporary is never written: its rename fails after a's succeeded.
+        OutputFiles files(MPI_COMM_WORLD);
+        const std::string a = files.add(fa);
+        files.add(fb);
+        if (test::world_rank() == 0) std::ofstream(a) << "new a";
+        MPI_Barrier(MPI_COMM_WORLD);
+        expect_collective_error([&] { files.commit(); }, "cannot write output file '" + fb + "'");
+    }
+    if (test::world_rank() == 0) {
+        EXPECT_EQ(listing(dir.path()), (std::vector<std::string>{"a.txt", "b.txt"}));
+        EXPECT_EQ(slurp(fa), "old a");
+        EXPECT_EQ(slurp(fb), "old b");
+    }
+    MPI_Barrier(MPI_COMM_WORLD);
+    {
+        OutputFiles files(MPI_COMM_WORLD);
+        const std::string a = files.add(fa), b = files.add(fb);
+        if (test::world_rank() == 0) std::ofstream(a) << "new a", std::ofstream(b) << "new b";
+        MPI_Barrier(MPI_COMM_WORLD);
+        files.commit();
+    }
+    if (test::world_rank() == 0) {
+        EXPECT_EQ(listing(dir.path()), (std::vector<std::string>{"a.txt", "b.txt"}));  // no backups left
+        EXPECT_EQ(slurp(fa), "new a");
+        EXPECT_EQ(slurp(fb), "new b");
+    }
+}
+
+// A final name that is a folder is refused before anything is renamed: the previous file of
+// the set stays.
+TEST(OutputFiles, AFinalNameThatIsAFolderLeavesThePreviousFiles) {
+    ScratchDir dir("outfiles_folder");
+    if (test::world_rank() == 0) {
+        std::ofstream(dir.file("a.txt")) << "old a";
+        fs::create_directory(dir.file("b.txt"));
+    }
+    OutputFiles files(MPI_COMM_WORLD);
+    const std::string a = files.add(dir.file("a.txt")), b = files.add(dir.file("b.txt"));
+    if (test::world_rank() == 0) std::ofstream(a) << "new a", std::ofstream(b) << "new b";
+    MPI_Barrier(MPI_COMM_WORLD);
+    expect_collective_error([&] { files.commit(); },
+                            "cannot write output file '" + dir.file("b.txt") + "': it exists and is not a file");
+    if (test::world_rank() == 0) {
+        EXPECT_EQ(listing(dir.path()), (std::vector<std::string>{"a.txt", "b.txt"}));
+        EXPECT_EQ(slurp(dir.file("a.txt")), "old a");
+        EXPECT_TRUE(fs::is_directory(dir.file("b.txt")));
     }
 }
 
