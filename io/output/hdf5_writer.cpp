@@ -28,9 +28,13 @@
 #include "io/output/hdf5_writer.h"
 
 #include <fcntl.h>
+#include <fmt/format.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -197,6 +201,14 @@ void Hdf5Writer::write_field(const std::string& name, const Field<double>& f,
     std::vector<float> values;
     values.reserve(static_cast<size_t>(b.cells() * f.ncomp()));
     for (double v : f.owned_values()) values.push_back(static_cast<float>(v));
+    // Nothing non-finite is written: a NaN, an Inf or a value beyond float32's range (a density
+    // of 1e300, which a run takes in double) would open in ParaView as a valid field.
+    std::int64_t bad = std::count_if(values.begin(), values.end(), [](float v) { return !std::isfinite(v); });
+    MPI_Allreduce(MPI_IN_PLACE, &bad, 1, MPI_INT64_T, MPI_SUM, comm);
+    if (bad > 0)
+        throw Error(fmt::format("{}: {} value(s) are NaN, Inf or beyond float32's range (±3.4e38); nothing was "
+                                "written (check the scene's densities and optical properties)",
+                                where, bad));
 
     bool ok = true;
     {

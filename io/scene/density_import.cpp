@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
+#include <new>
 #include <vector>
 
 #include "src/core/error.h"
@@ -200,7 +201,17 @@ Medium load_medium(const Scene& scene, const Decomposition& d) {
     Medium m;
     m.grid = make_grid(scene.grid);
     m.bands = scene.bands;
-    m.rho = Field<double>(d.local(), 1, 1, 0.0);
+    // Collectively: a rank that cannot allocate its box must not leave the others waiting in
+    // the next collective (main() would have to MPI_Abort, skipping every cleanup).
+    run_collective(d.comm(), [&] {
+        try {
+            m.rho = Field<double>(d.local(), 1, 1, 0.0);
+        } catch (const std::bad_alloc&) {
+            throw Error(fmt::format("not enough memory for the density ({:.1f} GiB per rank); use more ranks "
+                                    "(on more nodes) or a smaller grid",
+                                    static_cast<double>(d.local().grown(1).cells()) * 8 / (1 << 30)));
+        }
+    });
     if (scene.medium.kind == MediumSpec::Kind::hdf5 || scene.medium.kind == MediumSpec::Kind::raw)
         read_density(scene.medium, d, m.rho);
     else

@@ -17,6 +17,7 @@ void read_density(const MediumSpec& spec, const Decomposition& d, Field<double>&
 
 // The scene's medium on d: its grid, its bands and the density on the rank's box + 1 ghost layer
 // (procedural, or read_density for an hdf5/raw medium), checked by check_density (finite, >= 0).
+// A rank that cannot allocate its box makes every rank throw the same Error ("not enough memory").
 // Collective over d.comm(); throws the same Error on every rank.
 Medium load_medium(const Scene& scene, const Decomposition& d);
 

@@ -64,21 +64,10 @@ void info(const RunOptions& opts) {
         say_memory();
         throw;
     }
-    Field<double> rho;
-    run_collective(comm, [&] {
-        try {
-            rho = Field<double>(d.local(), 1, 1, 0.0);
-        } catch (const std::bad_alloc&) {
-            throw Error(fmt::format("not enough memory for the density ({:.1f} GiB per rank); use more ranks "
-                                    "(on more nodes) or a smaller grid",
-                                    static_cast<double>(d.local().grown(1).cells()) * 8 / (1 << 30)));
-        }
-    });
-    if (s.medium.kind == MediumSpec::Kind::hdf5 || s.medium.kind == MediumSpec::Kind::raw)
-        read_density(s.medium, d, rho);
-    else
-        fill_procedural_density(s.medium, d, rho);
-    check_density(rho, d);
+    // The density as a run builds it (allocated collectively: no rank is left waiting when
+    // another runs out of memory), checked like a run's.
+    const Medium m = load_medium(s, d);
+    const Field<double>& rho = m.rho;
 
     // Column sums of rho along z (vertical optical depth per unit sigma_t), reduced over ranks.
     const Box& own = d.local();
@@ -110,10 +99,6 @@ void info(const RunOptions& opts) {
 
     // The checks a run makes once the density exists, before its light pass (pipeline.cpp): a
     // scene a run would refuse gets the run's one-line error and no description.
-    Medium m;
-    m.grid = make_grid(s.grid);
-    m.bands = s.bands;
-    m.rho = std::move(rho);
     check_light_method(d, s.light.method);
     check_volume_sources(volume_sources(s), m.rho, d);
     make_model(s.model)->check(s, d, m);

@@ -19,12 +19,16 @@ GroundShading::GroundShading(const RenderInputs& in, const Decomposition& d)
     for (int b = 0; b < nb; ++b)
         albedo_.push_back(bg.ground_color.empty() ? bg.ground_albedo : band_value(bg.ground_color, b));
     shadows_ = in.scene.render.mode != RenderMode::single_unshadowed;
+    // Checked collectively: the constructor's MPI_Allreduce below must be reached by every rank
+    // or by none (a throw on one rank would leave the others in it).
+    std::string problem;
     if (shadows_ && in.light.tau_rho.size() != in.light.lights.size())
-        throw Error("render: the ground background needs tau_rho from the light pass for every light");
-    if (shadows_)
+        problem = "render: the ground background needs tau_rho from the light pass for every light";
+    if (shadows_ && problem.empty())
         for (const auto& f : in.light.tau_rho)
             if (f.allocated().intersect(d.local().grown(1)) != d.local().grown(1))
-                throw Error("render: tau_rho must cover the rank's box plus 1 ghost layer");
+                problem = "render: tau_rho must cover the rank's box plus 1 ghost layer";
+    check_collective(d.comm(), problem.empty(), problem);
     active_ = d.at_low_boundary(2);
     periodic_ = {d.periodic(0), d.periodic(1)};
     if (!shadows_) return;

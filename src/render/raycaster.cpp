@@ -267,10 +267,10 @@ Image render_image(const RenderInputs& in, const Decomposition& d, Report& repor
         if (!(scene.render.step > 0) || norm(g.extent()) / (scene.render.step * g.h) > 1e8)
             throw Error("render.step must be > 0 and leave at most 1e8 steps along a ray");
         camera.emplace(scene.camera, in.medium.grid);
-        ground.emplace(in, d);
         ScopedTimer t(report, "source");
         volume = build_view_volume(in, d, camera->position());
     });
+    ground.emplace(in, d);  // collective itself (an MPI_Allreduce): not inside run_collective
     {
         ScopedTimer t(report, "balance");
         volume = balance_view_volume(std::move(volume), d, *camera);

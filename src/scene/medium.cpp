@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "src/core/error.h"
 #include "src/core/halo.h"
@@ -77,8 +78,12 @@ void check_density(const Field<double>& rho, const Decomposition& d) {
         for (int j = b.lo[1]; j < b.hi[1] && msg.empty(); ++j)
             for (int i = b.lo[0]; i < b.hi[0]; ++i) {
                 const double v = rho(i, j, k);
-                if (!std::isfinite(v) || v < 0) {
-                    msg = fmt::format("density at cell ({}, {}, {}) is {}: densities must be finite and >= 0", i, j, k, v);
+                // The upper bound: every field is written as float32 (a density of 1e300 passed
+                // here and came out as Inf, with NaN in the fields derived from it).
+                if (!std::isfinite(v) || v < 0 || v > std::numeric_limits<float>::max()) {
+                    msg = fmt::format("density at cell ({}, {}, {}) is {}: densities must be finite, >= 0 and at "
+                                      "most {:.3g} (the float32 of the output files)",
+                                      i, j, k, v, std::numeric_limits<float>::max());
                     break;
                 }
             }

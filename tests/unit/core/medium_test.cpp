@@ -67,6 +67,13 @@ TEST(Medium, CheckDensityRefusesNegativeAndNaNOnEveryRank) {
     rho.fill(0.5);
     if (d.rank() == 0) rho(0, 0, 0) = -1.0;
     EXPECT_THROW(check_density(rho, d), Error);
+    // Beyond float32 (the output's type): 1e300 is finite in double but Inf in the file.
+    rho.fill(0.5);
+    if (d.rank() == d.size() - 1) rho(2, 2, d.local().lo[2]) = 1e300;
+    EXPECT_THROW(check_density(rho, d), Error);
+    rho.fill(0.5);
+    rho(0, 0, d.local().lo[2]) = 3e38;  // the largest float is 3.4e38: still accepted
+    EXPECT_NO_THROW(check_density(rho, d));
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -202,6 +203,30 @@ TEST(Hdf5Writer, NothingFinalUntilTheSetCommits) {
     if (test::world_rank() == 0) {
         EXPECT_EQ(listing(dir.path()), (std::vector<std::string>{"run.h5", "run.xdmf"}));
         EXPECT_EQ(read_field(path, "fields/density").shape, grid.n);
+    }
+}
+
+// A value that float32 cannot hold (1e300, a density a run takes in double) or a NaN, on one
+// rank only: every rank throws the same Error naming the field and the count, and nothing is left.
+TEST(Hdf5Writer, NonFiniteValuesAreRefusedOnEveryRankAndLeaveNothing) {
+    for (const double v : {1e300, std::numeric_limits<double>::quiet_NaN()}) {
+        WriterScene s("outfiles_nonfinite", test::sample_grid(), "bad.h5");
+        auto& [dir, grid, d, path] = s;
+        {
+            OutputFiles files(MPI_COMM_WORLD);
+            Hdf5Writer w(d, grid, path, files);
+            Field<double> f = test::sample_field(d, 1, 0.0);
+            const Int3 last{grid.n[0] - 1, grid.n[1] - 1, grid.n[2] - 1};  // on the last rank
+            if (d.local().contains(last[0], last[1], last[2])) f(last[0], last[1], last[2]) = v;
+            expect_collective_error([&] { w.write_field("density", f, "1", "density"); },
+                                    "output file '" + path + "', field 'density': 1 value(s) are NaN, Inf or "
+                                    "beyond float32's range");
+        }
+        MPI_Barrier(MPI_COMM_WORLD);
+        if (test::world_rank() == 0) {
+            EXPECT_TRUE(listing(dir.path()).empty()) << v;
+        }
+        MPI_Barrier(MPI_COMM_WORLD);
     }
 }
 
