@@ -201,7 +201,7 @@ TEST(DensityImportErrors, NanInFile) {
     const Decomposition d(MPI_COMM_WORLD, kN);
     Field<double> rho(d.local(), 1);
     expect_error_everywhere([&] { read_density(spec_for(MediumSpec::Kind::raw, dir.file("nan.raw")), d, rho); },
-                            {"nan.raw", "density at cell (3, 2, 3) is nan", "finite and >= 0"});
+                            {"nan.raw", "density at cell (3, 2, 3) is nan", "densities must be finite, >= 0 and at most 3.4e+38"});
     expect_error_everywhere([&] { read_density(spec_for(MediumSpec::Kind::hdf5, dir.file("nan.h5")), d, rho); },
                             {"nan.h5", "density at cell (3, 2, 3) is nan"});
 }
