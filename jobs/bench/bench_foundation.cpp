@@ -1,7 +1,9 @@
-// Benchmark (not a test): times the light pass (sun + sky sweeps) and the single-scattering
-// render of the default cumulus at N³ and a W×H image, on however many ranks it is started.
+// Benchmark (not a test): times the light pass (sun + sky terms; the `sweep` and the `exact`
+// method, alternating) and the single-scattering render (lit by the sweep's light) of the
+// default cumulus at N³ and a W×H image, on however many ranks it is started.
 //   mpiexec -n 2 build/bin/bench_foundation 256 1920 1080 [repeats]
-// Prints one markdown row: N, ranks, light terms, light-pass seconds, render seconds (medians).
+// Prints one markdown row: N, ranks, light terms, light-pass seconds (sweep, exact), render
+// seconds (medians).
 #include <mpi.h>
 
 #include <algorithm>
@@ -35,15 +37,17 @@ int main(int argc, char** argv) {
     const Medium medium = load_medium(scene, d);
     const auto lights = make_lights(scene);
 
-    std::vector<double> t_light, t_render;
+    std::vector<double> t_light, t_exact, t_render;
     LightTransport lt;
     for (int r = 0; r < repeats + 1; ++r) {  // first repeat warms up (page-in), not counted
-        Report rep;
-        MPI_Barrier(MPI_COMM_WORLD);
-        double t0 = MPI_Wtime();
-        lt = compute_light_transport(d, medium, lights, rep);
-        MPI_Barrier(MPI_COMM_WORLD);
-        if (r > 0) t_light.push_back(MPI_Wtime() - t0);
+        for (const auto method : {LightSpec::Method::exact, LightSpec::Method::sweep}) {
+            Report rep;
+            MPI_Barrier(MPI_COMM_WORLD);
+            double t0 = MPI_Wtime();
+            lt = compute_light_transport(d, medium, lights, rep, {}, method);
+            MPI_Barrier(MPI_COMM_WORLD);
+            if (r > 0) (method == LightSpec::Method::sweep ? t_light : t_exact).push_back(MPI_Wtime() - t0);
+        }
     }
     const DiffuseSolution diffuse = zero_solution(d, medium.nbands());
     for (int r = 0; r < repeats + 1; ++r) {
@@ -55,8 +59,8 @@ int main(int argc, char** argv) {
         if (r > 0) t_render.push_back(MPI_Wtime() - t0);
     }
     if (rank == 0)
-        std::printf("| %d³ | %d×%d | %d | %zu | %.3f | %.3f |\n", N, W, H, size, lights.size(),
-                    median(t_light), median(t_render));
+        std::printf("| %d³ | %d×%d | %d | %zu | %.3f | %.3f | %.3f |\n", N, W, H, size, lights.size(),
+                    median(t_light), median(t_exact), median(t_render));
     MPI_Finalize();
     return 0;
 }

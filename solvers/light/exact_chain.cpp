@@ -65,20 +65,19 @@ void exact_tau_chain(const Decomposition& d, RayGrid& slab, double h, const Dire
             mine.resize(static_cast<size_t>(cells.cells()));
             piece = mine;
         }
-        size_t p = 0;
-        for_each_cell(cells, [&](int i, int j, int k) {
+        for_each_cell_along(cells, b, [&](int i, int j, int k, std::int64_t p) {
             std::array<double, 3> pos{i + 0.5, j + 0.5, k + 0.5};
             if (downstream_rays) {  // start where the ray enters this slab
                 const double t = (z_entry - pos[2]) / b.z;
                 for (int a = 0; a < 3; ++a) pos[a] += t * b[a];
                 pos[2] = z_entry;
             }
-            piece[p++] = ray_integral(slab, b, pos) * h;
+            piece[static_cast<size_t>(p)] = ray_integral(slab, b, pos) * h;
         });
         const std::span<const double> upstream_sum = io.in();
         for (size_t c = 0; c < upstream_sum.size(); ++c) piece[c] += upstream_sum[c];
         if (!downstream_rays) {
-            p = 0;
+            size_t p = 0;
             for_each_cell(own, [&](int i, int j, int k) { tau(i, j, k) = piece[p++]; });
         }
     });

@@ -11,11 +11,16 @@
 //
 // The rays are walked by the grid walk of the Monte Carlo paths (src/core/grid_walk.h): exact
 // cell traversal that crosses empty regions in one step per empty cube (empty_space.h), which
-// made the default cloud's 9 light terms ~2.5x cheaper than a cell-by-cell march.
+// made the default cloud's 9 light terms ~2.5x cheaper than a cell-by-cell march. The cells'
+// rays are traced in columns along the light (for_each_cell_along), so that each ray finds the
+// cells the previous one crossed still in cache: 1.7-1.9x faster than x-fastest order on 128³
+// and 256³ (jobs/bench_foundation.sh), where the walk used to wait on its voxel loads.
 #pragma once
 
 #include <algorithm>
 #include <array>
+#include <cmath>
+#include <cstdint>
 #include <limits>
 #include <vector>
 
@@ -47,6 +52,17 @@ RayGrid make_ray_grid(const Box& box, const Int3& n, const std::array<bool, 3>& 
 // on a cell face belongs to the cell the ray moves into. Pure.
 double ray_integral(RayGrid& g, const Vec3& b, const std::array<double, 3>& pos);
 
+// Calls fn(i, j, k, p) once for every cell of box, p being the cell's index in x-fastest order
+// (for_each_cell's), in an order that keeps consecutive rays toward the light on the same cells:
+// columns of tile x tile cells sheared along b (layer k shifted by floor(k b_xy / b_z) cells, so
+// a column follows one ray line), each column from its lowest layer to its highest. A cell's ray
+// then crosses what the ray of the cell below it crossed one step earlier, and the walk finds
+// its cells in cache; in x-fastest order the next ray over the same cells came a whole layer
+// of rays later. Horizontal or nearly horizontal b (a shear wider than the box allows) keeps
+// x-fastest order. The results do not depend on the order: every ray is integrated on its own.
+template <class Fn>
+void for_each_cell_along(const Box& box, const Vec3& b, Fn&& fn, int tile = 8);
+
 // Collective over d.comm(); slabs along z. tau_rho (owned box, ghosts untouched) of one light;
 // slab = make_slab_grid(d, rho) (built once for all lights).
 RayGrid make_slab_grid(const Decomposition& d, const Field<double>& rho);
@@ -75,6 +91,42 @@ RayGrid make_ray_grid(const Box& box, const Int3& n, const std::array<bool, 3>& 
         g.rho[static_cast<size_t>(v.index({i - box.lo[0], j - box.lo[1], k - box.lo[2]}))] = rho_of(i, j, k);
     });
     return g;
+}
+
+template <class Fn>
+void for_each_cell_along(const Box& box, const Vec3& b, Fn&& fn, int tile) {
+    const Int3 m = box.shape();
+    if (box.empty()) return;
+    tile = std::max(tile, 1);
+    auto plain = [&] {
+        std::int64_t p = 0;
+        for_each_cell(box, [&](int i, int j, int k) { fn(i, j, k, p++); });
+    };
+    // Cells per layer that a ray line moves along x and y; the column loop below runs
+    // tiles x layers iterations, so a shear that makes them many times the cells is not worth it.
+    const double sx = b.x / b.z, sy = b.y / b.z;  // b.z = 0: inf or nan, refused below
+    const double reach_x = std::abs(sx) * m[2], reach_y = std::abs(sy) * m[2];
+    if (!(reach_x <= 4.0 * m[0] + 64 && reach_y <= 4.0 * m[1] + 64)) return plain();
+    std::vector<int> ox(static_cast<size_t>(m[2])), oy(static_cast<size_t>(m[2]));
+    for (int k = 0; k < m[2]; ++k) {
+        ox[static_cast<size_t>(k)] = floor_to_int(sx * k);
+        oy[static_cast<size_t>(k)] = floor_to_int(sy * k);
+    }
+    const auto [ox_lo, ox_hi] = std::minmax_element(ox.begin(), ox.end());
+    const auto [oy_lo, oy_hi] = std::minmax_element(oy.begin(), oy.end());
+    // Layer k's cell i is column i - ox[k], in [-max ox, m0 - min ox): the tiles cover that range.
+    for (int tj = -*oy_hi; tj < m[1] - *oy_lo; tj += tile)
+        for (int ti = -*ox_hi; ti < m[0] - *ox_lo; ti += tile)
+            for (int k = 0; k < m[2]; ++k) {
+                const int i0 = std::max(0, ti + ox[static_cast<size_t>(k)]);
+                const int i1 = std::min(m[0], ti + tile + ox[static_cast<size_t>(k)]);
+                const int j0 = std::max(0, tj + oy[static_cast<size_t>(k)]);
+                const int j1 = std::min(m[1], tj + tile + oy[static_cast<size_t>(k)]);
+                for (int j = j0; j < j1; ++j)
+                    for (int i = i0; i < i1; ++i)
+                        fn(box.lo[0] + i, box.lo[1] + j, box.lo[2] + k,
+                           (static_cast<std::int64_t>(k) * m[1] + j) * m[0] + i);
+            }
 }
 
 }  // namespace nimbus

@@ -100,7 +100,7 @@ LightTransport exact_light_transport(const Decomposition& d, const Medium& m,
             exact_tau_chain(d, grid, m.grid.h, light, tau);
         } else {
             const Vec3 b = -normalized(light.w);
-            for_each_cell(d.local(), [&](int i, int j, int k) {
+            for_each_cell_along(d.local(), b, [&](int i, int j, int k, std::int64_t) {
                 tau(i, j, k) = ray_integral(grid, b, {i + 0.5, j + 0.5, k + 0.5}) * m.grid.h;
             });
         }
