@@ -28,7 +28,7 @@ double ray_integral(RayGrid& g, const Vec3& b, const std::array<double, 3>& pos)
     s.d = b;
     double sum = 0.0;
     walk_optical_depth(v, s, std::numeric_limits<double>::infinity(),
-                       [&](std::int64_t idx, double len) { sum += g.rho[static_cast<size_t>(idx)] * len; });
+                       [&](std::int64_t idx, double len) { sum += v.voxel[idx].tally * len; });
     return sum;
 }
 

@@ -34,11 +34,11 @@
 namespace nimbus {
 
 // A box of cells (a rank's slab, or the whole domain) prepared for ray integrals: the walk's
-// voxels mark the non-empty cells and their empty-space distances; rho holds the density in the
-// walk's padded layout, so the sums stay in double precision.
+// voxels mark the non-empty cells and their empty-space distances, and each voxel's double
+// (Voxel::tally, the Monte Carlo's accumulator) holds the cell's density, so the sums stay in
+// double precision and a step reads one 16-byte voxel (16 bytes per cell in all).
 struct RayGrid {
     VoxelGrid voxels;
-    std::vector<double> rho;      // padded layout (GridView::index)
     std::array<bool, 3> periodic;  // of the walk: the domain's x/y; never z (rays stop at z faces)
 };
 
@@ -82,13 +82,12 @@ RayGrid make_ray_grid(const Box& box, const Int3& n, const std::array<bool, 3>& 
         const double r = rho_of(i, j, k);
         mark[c++] = r > 0 ? std::max(static_cast<float>(r), std::numeric_limits<float>::min()) : 0.0f;
     });
-    RayGrid g{make_voxels(m, mark), {}, {domain_periodic[0], domain_periodic[1], false}};
+    RayGrid g{make_voxels(m, mark), {domain_periodic[0], domain_periodic[1], false}};
     g.voxels.origin = {box.lo[0], box.lo[1], box.lo[2]};
     g.voxels.domain = {n[0], n[1], n[2]};
-    g.rho.assign(g.voxels.voxel.size(), 0.0);
     const GridView v = g.voxels.view(g.periodic);
     for_each_cell(box, [&](int i, int j, int k) {
-        g.rho[static_cast<size_t>(v.index({i - box.lo[0], j - box.lo[1], k - box.lo[2]}))] = rho_of(i, j, k);
+        v.voxel[v.index({i - box.lo[0], j - box.lo[1], k - box.lo[2]})].tally = rho_of(i, j, k);
     });
     return g;
 }

@@ -84,7 +84,7 @@ LightTransport exact_light_transport(const Decomposition& d, const Medium& m,
     const Int3 n = d.global().hi;
     const std::array<bool, 3> periodic{d.periodic(0), d.periodic(1), d.periodic(2)};
     // The cells this rank's rays cross, prepared once for all lights (exact_chain.h): its slab,
-    // or the whole replicated domain (24 bytes per cell once the gathered copy is released).
+    // or the whole replicated domain (16 bytes per cell once the gathered copy is released).
     RayGrid grid = chain ? make_slab_grid(d, m.rho) : [&] {
         const std::vector<double> rho = allgather_global(m.rho, d);
         return make_ray_grid(d.global(), n, periodic, [&](int i, int j, int k) {
@@ -109,7 +109,7 @@ LightTransport exact_light_transport(const Decomposition& d, const Medium& m,
         progress.update(static_cast<double>(lt.tau_rho.size()));
     }
     progress.finish();
-    const double grid_bytes = static_cast<double>(grid.voxels.voxel.size()) * (sizeof(Voxel) + sizeof(double));
+    const double grid_bytes = static_cast<double>(grid.voxels.voxel.size()) * sizeof(Voxel);
     report.values()["light"] = {{"terms", lights.size()}, {"method", chain ? "exact (slab chain)" : "exact (replicated)"},
                                 {"replicated_memory_gb", chain ? 0.0 : 1e-9 * grid_bytes}};
     return lt;

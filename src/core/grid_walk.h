@@ -46,7 +46,8 @@ static_assert(std::numeric_limits<double>::is_iec559, "the walk relies on IEEE d
 struct Voxel {
     float kappa = 0.0f;       // extinction, 1/cell
     std::uint32_t skip = 0;   // chessboard distance to the nearest non-empty cell (0 if non-empty)
-    double tally = 0.0;       // the caller's accumulator (Monte Carlo: w len of the current light)
+    double tally = 0.0;       // the caller's per-cell double (Monte Carlo: w len of the current light;
+                              // the exact light pass: the density, solvers/light/exact_chain.h)
 };
 static_assert(sizeof(Voxel) == 16);
 
