@@ -38,7 +38,8 @@ RayGrid make_slab_grid(const Decomposition& d, const Field<double>& rho) {
 }
 
 void exact_tau_chain(const Decomposition& d, RayGrid& slab, double h, const DirectionalLight& light,
-                     Field<double>& tau) {
+                     Field<double>& tau, double* busy_seconds) {
+    const double t_start = MPI_Wtime();
     const Vec3 b = -normalized(light.w);  // toward the light
     const Box& own = d.local();
     // The partial sums travel away from the light; horizontal light never crosses a z face
@@ -56,7 +57,7 @@ void exact_tau_chain(const Decomposition& d, RayGrid& slab, double h, const Dire
     // The face where rays from downstream cells enter this slab.
     const double z_entry = b.z > 0 ? own.lo[2] : own.hi[2];
     std::vector<double> mine;
-    sweep::pass_down(d, dir, groups, [&](int g, sweep::ChainIO& io) {
+    const sweep::ChainStats stats = sweep::pass_down(d, dir, groups, [&](int g, sweep::ChainIO& io) {
         const bool downstream_rays = g > link.position;
         const Box& cells = boxes[static_cast<size_t>(g)];
         // This slab's piece of the rays (traced before waiting for upstream's partial sums).
@@ -81,6 +82,7 @@ void exact_tau_chain(const Decomposition& d, RayGrid& slab, double h, const Dire
             for_each_cell(own, [&](int i, int j, int k) { tau(i, j, k) = piece[p++]; });
         }
     });
+    if (busy_seconds) *busy_seconds = MPI_Wtime() - t_start - stats.wait_seconds;
 }
 
 }  // namespace nimbus

@@ -64,10 +64,12 @@ template <class Fn>
 void for_each_cell_along(const Box& box, const Vec3& b, Fn&& fn, int tile = 8);
 
 // Collective over d.comm(); slabs along z. tau_rho (owned box, ghosts untouched) of one light;
-// slab = make_slab_grid(d, rho) (built once for all lights).
+// slab = make_slab_grid(d, rho) (built once for all lights). busy_seconds (if given) gets this
+// rank's time in the pass not spent waiting on the chain: its tracing, whose spread over the
+// ranks is the chain's imbalance.
 RayGrid make_slab_grid(const Decomposition& d, const Field<double>& rho);
 void exact_tau_chain(const Decomposition& d, RayGrid& slab, double h, const DirectionalLight& light,
-                     Field<double>& tau);
+                     Field<double>& tau, double* busy_seconds = nullptr);
 
 // ---------------------------------------------------------------------------------------------
 

@@ -94,10 +94,13 @@ LightTransport exact_light_transport(const Decomposition& d, const Medium& m,
     LightTransport lt;
     lt.lights = lights;
     Progress progress("light pass (exact)", static_cast<double>(lights.size()), d.rank() == 0);
+    double busy_total = 0.0;  // this rank's tracing on the chain, all lights
     for (const auto& light : lights) {
         Field<double> tau(d.local(), 1, 1, 0.0);
         if (chain) {
-            exact_tau_chain(d, grid, m.grid.h, light, tau);
+            double busy = 0.0;
+            exact_tau_chain(d, grid, m.grid.h, light, tau, &busy);
+            busy_total += busy;
         } else {
             const Vec3 b = -normalized(light.w);
             for_each_cell_along(d.local(), b, [&](int i, int j, int k, std::int64_t) {
@@ -112,6 +115,14 @@ LightTransport exact_light_transport(const Decomposition& d, const Medium& m,
     const double grid_bytes = static_cast<double>(grid.voxels.voxel.size()) * sizeof(Voxel);
     report.values()["light"] = {{"terms", lights.size()}, {"method", chain ? "exact (slab chain)" : "exact (replicated)"},
                                 {"replicated_memory_gb", chain ? 0.0 : 1e-9 * grid_bytes}};
+    if (chain) {
+        // The chain's balance: the busiest rank's tracing against the mean over the ranks.
+        double busy[2] = {busy_total, busy_total};
+        MPI_Allreduce(MPI_IN_PLACE, &busy[0], 1, MPI_DOUBLE, MPI_MAX, d.comm());
+        MPI_Allreduce(MPI_IN_PLACE, &busy[1], 1, MPI_DOUBLE, MPI_SUM, d.comm());
+        report.values()["light"]["trace_seconds_max"] = busy[0];
+        report.values()["light"]["trace_seconds_mean"] = busy[1] / d.size();
+    }
     return lt;
 }
 

@@ -277,10 +277,17 @@ TEST(ExactLight, MatchesTheSweepForAxisAlignedLightAndWorksOnAnyProcessGrid) {
     xsplit.m.rho = Field<double>(xsplit.d.local(), 1, 1, 0.0);
     for_each_cell(xsplit.d.local(), [&](int i, int j, int k) { xsplit.m.rho(i, j, k) = rho_of(i, j, k); });
     const std::vector<DirectionalLight> lights{{"down", {0, 0, -1}, {1.0}}, {"east", {1, 0, 0}, {1.0}}};
-    Report r;
+    Report r, r_slabs, r_x;
     const auto sweep = compute_light_transport(slabs.d, slabs.m, lights, r);
-    const auto exact = compute_light_transport(slabs.d, slabs.m, lights, r, {}, LightSpec::Method::exact);
-    const auto exact_x = compute_light_transport(xsplit.d, xsplit.m, lights, r, {}, LightSpec::Method::exact);
+    const auto exact = compute_light_transport(slabs.d, slabs.m, lights, r_slabs, {}, LightSpec::Method::exact);
+    const auto exact_x = compute_light_transport(xsplit.d, xsplit.m, lights, r_x, {}, LightSpec::Method::exact);
+    // The slab chain reports its balance (the same on every rank); the replicated path (an x
+    // split, which on one rank is a slab too) has none.
+    const auto& chain = r_slabs.values()["light"];
+    EXPECT_EQ(chain["method"], "exact (slab chain)");
+    EXPECT_GT(chain["trace_seconds_mean"].get<double>(), 0.0);
+    EXPECT_GE(chain["trace_seconds_max"].get<double>(), chain["trace_seconds_mean"].get<double>() * (1 - 1e-12));
+    EXPECT_EQ(r_x.values()["light"].contains("trace_seconds_max"), test::world_size() == 1);
     for (size_t l = 0; l < lights.size(); ++l) {
         for_each_cell(slabs.d.local(), [&](int i, int j, int k) {
             ASSERT_NEAR(exact.tau_rho[l](i, j, k), sweep.tau_rho[l](i, j, k), 1e-12);
