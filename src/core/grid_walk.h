@@ -127,8 +127,21 @@ inline std::array<int, 3> cell_of(const GridView& g, std::int64_t idx) {
 // on_segment(cell_index, length) is called for every piece of path inside one cell, with
 // the length in cells, for cells with kappa > 0; the sum of kappa * length over the calls
 // equals the optical depth travelled (Beer-Lambert along a piecewise-constant medium).
-template <class OnSegment>
-[[gnu::always_inline]] inline int walk_optical_depth(const GridView& g, PathState& s, double tau, OnSegment&& on_segment) {
+// on_step(cell_index), if given, is called for every voxel the walk reads (each unit step's
+// cell, including the one an empty-space jump starts from): the walk's work, counted (the
+// exact light pass balances its slabs by it, solvers/light/light_slabs.h). The default does
+// nothing and compiles away.
+struct NoStepHook {
+    void operator()(std::int64_t) const {}
+};
+
+namespace detail {
+
+// The walk; kExitState: on leaving the walked box, s is set and the domain face found (else it
+// just returns 0: walk_through).
+template <bool kExitState, class OnSegment, class OnStep>
+[[gnu::always_inline]] inline int walk(const GridView& g, PathState& s, double tau, OnSegment& on_segment,
+                                       OnStep& on_step) {
     constexpr double inf = std::numeric_limits<double>::infinity();
     const double dir[3] = {s.d.x, s.d.y, s.d.z};
     const double adir[3] = {std::abs(dir[0]), std::abs(dir[1]), std::abs(dir[2])};
@@ -136,74 +149,74 @@ template <class OnSegment>
     const std::int64_t stride[3] = {1, sy, sz};
     int step[3];
     std::int64_t dstep[3];
-    double inv[3], t_next[3];
+    double inv[3];
     for (int a = 0; a < 3; ++a) {
         step[a] = dir[a] >= 0 ? 1 : -1;
         dstep[a] = dir[a] >= 0 ? stride[a] : -stride[a];
         inv[a] = 1.0 / adir[a];  // IEEE: +inf for a component of 0
     }
-    // Distance from the current point (t = 0) to the next face per axis.
-    auto restart = [&] {
-        for (int a = 0; a < 3; ++a)
-            t_next[a] = inv[a] == inf ? inf : (step[a] > 0 ? 1.0 - s.frac[a] : s.frac[a]) * inv[a];
+    // Distance from the current point (t = 0) to the next face per axis: tx, ty, tz, scalars
+    // throughout (kept in an array written by a variable axis, they went through memory, and
+    // reading two of them back as one vector after a jump stalled on store forwarding: ~15% of
+    // the exact light pass's samples).
+    auto first_face = [&](int a) {
+        return inv[a] == inf ? inf : (step[a] > 0 ? 1.0 - s.frac[a] : s.frac[a]) * inv[a];
     };
+    double tx = first_face(0), ty = first_face(1), tz = first_face(2);
     // Fractions at distance t along the ray (t_next[a] - t is what is left of the cell on axis a).
     auto set_frac = [&](double t) {
+        const double t_next[3] = {tx, ty, tz};
         for (int a = 0; a < 3; ++a) {
             if (inv[a] == inf) continue;
             const double left = (t_next[a] - t) * adir[a];
             s.frac[a] = std::min(std::max(step[a] > 0 ? 1.0 - left : left, 0.0), 1.0);
         }
     };
-    restart();
     double t = 0.0;
     int last = 0;  // axis of the last unit step
     std::int64_t idx = s.idx;
     for (;;) {
-        // Unit steps, the hot loop: t_next in registers, the cell known only by its index.
+        // Unit steps, the hot loop: the cell known only by its index.
         Voxel v;
-        {
-            double tx = t_next[0], ty = t_next[1], tz = t_next[2];
-            for (;;) {
-                v = g.voxel[idx];
-                if (v.skip > 1) [[unlikely]] break;
-                // argmin of t_next; ties go to the higher axis. (Bitwise selects instead of the
-                // compare-and-jump the compiler emits were 20% slower on the default cloud: the
-                // jumps predict well enough, and the selects lengthen the step's dependency chain.)
-                const bool y_le_x = !(tx < ty);
-                const double m01 = y_le_x ? ty : tx;
-                const bool z_le = !(m01 < tz);
-                const double t_exit = z_le ? tz : m01;
-                const int axis = z_le ? 2 : (y_le_x ? 1 : 0);
-                if (v.kappa > 0.0f) {
-                    const double kappa = v.kappa;
-                    const double seg = t_exit - t;
-                    const double depth = kappa * seg;
-                    if (depth >= tau) {
-                        const double len = tau / kappa;
-                        on_segment(idx, len);
-                        t_next[0] = tx, t_next[1] = ty, t_next[2] = tz;
-                        s.idx = idx;
-                        set_frac(t + len);
-                        return -1;
-                    }
-                    tau -= depth;
-                    on_segment(idx, seg);
+        for (;;) {
+            v = g.voxel[idx];
+            on_step(idx);
+            if (v.skip > 1) [[unlikely]] break;
+            // argmin of t_next; ties go to the higher axis. (Bitwise selects instead of the
+            // compare-and-jump the compiler emits were 20% slower on the default cloud: the
+            // jumps predict well enough, and the selects lengthen the step's dependency chain.)
+            const bool y_le_x = !(tx < ty);
+            const double m01 = y_le_x ? ty : tx;
+            const bool z_le = !(m01 < tz);
+            const double t_exit = z_le ? tz : m01;
+            const int axis = z_le ? 2 : (y_le_x ? 1 : 0);
+            if (v.kappa > 0.0f) {
+                const double kappa = v.kappa;
+                const double seg = t_exit - t;
+                const double depth = kappa * seg;
+                if (depth >= tau) {
+                    const double len = tau / kappa;
+                    on_segment(idx, len);
+                    s.idx = idx;
+                    set_frac(t + len);
+                    return -1;
                 }
-                t = t_exit;
-                const double t_after = t_exit + inv[axis];
-                tx = axis == 0 ? t_after : tx;
-                ty = axis == 1 ? t_after : ty;
-                tz = axis == 2 ? t_after : tz;
-                idx += dstep[axis];
-                last = axis;
+                tau -= depth;
+                on_segment(idx, seg);
             }
-            t_next[0] = tx, t_next[1] = ty, t_next[2] = tz;
+            t = t_exit;
+            const double t_after = t_exit + inv[axis];
+            tx = axis == 0 ? t_after : tx;
+            ty = axis == 1 ? t_after : ty;
+            tz = axis == 2 ? t_after : tz;
+            idx += dstep[axis];
+            last = axis;
         }
         if (v.skip == outside_skip) {
             // The last unit step crossed the face of the grid on axis `last`: leave or wrap.
             const int a = last;
             if (!g.periodic[a]) {
+                if constexpr (!kExitState) return 0;
                 s.idx = idx - dstep[a];  // back to the last cell inside
                 set_frac(t);
                 s.frac[a] = step[a] > 0 ? 1.0 : 0.0;
@@ -219,21 +232,45 @@ template <class OnSegment>
         // lies inside the grid, so only the exit axis can reach the ghost layer, which the
         // unit loop then handles as any other step onto it.
         const int e = static_cast<int>(v.skip) - 1;
-        double tc[3];
-        for (int a = 0; a < 3; ++a) tc[a] = t_next[a] + e * inv[a];  // inf stays inf
-        const int exit = tc[0] < tc[1] ? (tc[0] < tc[2] ? 0 : 2) : (tc[1] < tc[2] ? 1 : 2);
-        const double t_exit = tc[exit];
-        for (int a = 0; a < 3; ++a) {
-            if (a == exit || !(t_next[a] <= t_exit)) continue;
-            const int crossed = std::min(floor_to_int((t_exit - t_next[a]) * adir[a]) + 1, e);
-            t_next[a] += crossed * inv[a];
+        const double cx = tx + e * inv[0], cy = ty + e * inv[1], cz = tz + e * inv[2];  // inf stays inf
+        const int exit = cx < cy ? (cx < cz ? 0 : 2) : (cy < cz ? 1 : 2);
+        const double t_exit = exit == 0 ? cx : (exit == 1 ? cy : cz);
+        auto cross = [&](int a, double& tn) {
+            if (a == exit || !(tn <= t_exit)) return;
+            const int crossed = std::min(floor_to_int((t_exit - tn) * adir[a]) + 1, e);
+            tn += crossed * inv[a];
             idx += crossed * dstep[a];
-        }
+        };
+        cross(0, tx);
+        cross(1, ty);
+        cross(2, tz);
         t = t_exit;
-        t_next[exit] = t_exit + inv[exit];
+        const double t_after = t_exit + inv[exit];
+        tx = exit == 0 ? t_after : tx;
+        ty = exit == 1 ? t_after : ty;
+        tz = exit == 2 ? t_after : tz;
         idx += (e + 1) * dstep[exit];
         last = exit;
     }
+}
+
+}  // namespace detail
+
+template <class OnSegment, class OnStep = NoStepHook>
+[[gnu::always_inline]] inline int walk_optical_depth(const GridView& g, PathState& s, double tau, OnSegment&& on_segment,
+                                                     OnStep&& on_step = OnStep{}) {
+    return detail::walk<true>(g, s, tau, on_segment, on_step);
+}
+
+// The walk of a ray that runs until it leaves the walked box (no optical depth to use up),
+// when nothing about where it left is needed: the exact light pass's ray integrals. Calls
+// on_segment and on_step as walk_optical_depth does; leaves s unspecified. Skips what a
+// path's exit costs (the exit point, the cell's coordinates: two 64-bit divisions, the domain
+// face), which was a large part of a short ray piece.
+template <class OnSegment, class OnStep = NoStepHook>
+[[gnu::always_inline]] inline void walk_through(const GridView& g, PathState& s, OnSegment&& on_segment,
+                                                OnStep&& on_step = OnStep{}) {
+    detail::walk<false>(g, s, std::numeric_limits<double>::infinity(), on_segment, on_step);
 }
 
 }  // namespace nimbus
