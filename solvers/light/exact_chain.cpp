@@ -8,28 +8,43 @@
 
 namespace nimbus {
 
-double ray_integral(RayGrid& g, const Vec3& b, const std::array<double, 3>& pos) {
+bool ray_start(RayGrid& g, const Vec3& b, const std::array<double, 3>& pos, PathState& s) {
     const GridView v = g.voxels.view(g.periodic);
     std::array<int, 3> cell{};
-    PathState s;
     for (int a = 0; a < 3; ++a) {
         // A point on a cell face belongs to the cell the ray moves into.
-        int c = b[a] >= 0 ? static_cast<int>(std::floor(pos[a])) : static_cast<int>(std::ceil(pos[a])) - 1;
+        int c = b[a] >= 0 ? floor_to_int(pos[a]) : -floor_to_int(-pos[a]) - 1;
         s.frac[static_cast<size_t>(a)] = std::clamp(pos[a] - c, 0.0, 1.0);
         if (a < 2 && (c < 0 || c >= v.domain[a])) {
-            if (!v.periodic[a]) return 0.0;
+            if (!v.periodic[a]) return false;
             c = (c % v.domain[a] + v.domain[a]) % v.domain[a];
         }
         c -= v.origin[a];
-        if (c < 0 || c >= v.n[a]) return 0.0;
+        if (c < 0 || c >= v.n[a]) return false;
         cell[static_cast<size_t>(a)] = c;
     }
     s.idx = v.index(cell);
     s.d = b;
+    return true;
+}
+
+double ray_integral(RayGrid& g, const Vec3& b, const std::array<double, 3>& pos) {
+    PathState s;
+    if (!ray_start(g, b, pos, s)) return 0.0;
+    const GridView v = g.voxels.view(g.periodic);
     double sum = 0.0;
-    walk_optical_depth(v, s, std::numeric_limits<double>::infinity(),
-                       [&](std::int64_t idx, double len) { sum += v.voxel[idx].tally * len; });
+    walk_through(v, s, [&](std::int64_t idx, double len) { sum += v.voxel[idx].tally * len; });
     return sum;
+}
+
+std::array<double, 3> piece_start(const Vec3& b, int i, int j, int k, bool downstream, double z_entry) {
+    std::array<double, 3> pos{i + 0.5, j + 0.5, k + 0.5};
+    if (downstream) {
+        const double t = (z_entry - pos[2]) / b.z;
+        for (int a = 0; a < 3; ++a) pos[a] += t * b[a];
+        pos[2] = z_entry;
+    }
+    return pos;
 }
 
 RayGrid make_slab_grid(const Decomposition& d, const Field<double>& rho) {
@@ -67,13 +82,7 @@ void exact_tau_chain(const Decomposition& d, RayGrid& slab, double h, const Dire
             piece = mine;
         }
         for_each_cell_along(cells, b, [&](int i, int j, int k, std::int64_t p) {
-            std::array<double, 3> pos{i + 0.5, j + 0.5, k + 0.5};
-            if (downstream_rays) {  // start where the ray enters this slab
-                const double t = (z_entry - pos[2]) / b.z;
-                for (int a = 0; a < 3; ++a) pos[a] += t * b[a];
-                pos[2] = z_entry;
-            }
-            piece[static_cast<size_t>(p)] = ray_integral(slab, b, pos) * h;
+            piece[static_cast<size_t>(p)] = ray_integral(slab, b, piece_start(b, i, j, k, downstream_rays, z_entry)) * h;
         });
         const std::span<const double> upstream_sum = io.in();
         for (size_t c = 0; c < upstream_sum.size(); ++c) piece[c] += upstream_sum[c];

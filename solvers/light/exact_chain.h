@@ -51,6 +51,13 @@ RayGrid make_ray_grid(const Box& box, const Int3& n, const std::array<bool, 3>& 
 // axis, the domain's x/y range (periodic x/y wrap; g then spans the domain along them). A point
 // on a cell face belongs to the cell the ray moves into. Pure.
 double ray_integral(RayGrid& g, const Vec3& b, const std::array<double, 3>& pos);
+// The walk's state for that ray (ray_integral's start): false if pos is outside g's cells.
+bool ray_start(RayGrid& g, const Vec3& b, const std::array<double, 3>& pos, PathState& s);
+
+// Where a slab's piece of the ray from the centre of cell (i, j, k) starts: the centre itself,
+// or for a cell downstream of the slab (`downstream`) the point where the ray crosses the
+// slab's entry face z = z_entry (b.z != 0).
+std::array<double, 3> piece_start(const Vec3& b, int i, int j, int k, bool downstream, double z_entry);
 
 // Calls fn(i, j, k, p) once for every cell of box, p being the cell's index in x-fastest order
 // (for_each_cell's), in an order that keeps consecutive rays toward the light on the same cells:

@@ -7,6 +7,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "src/core/box.h"
 
@@ -41,11 +42,20 @@ public:
 
     std::string describe() const;  // e.g. "2 ranks as 1x1x2 (slabs along z)"
 
+    // The same ranks, communicator and process grid with the cells along `axis` split at
+    // `cuts` instead of evenly: part p (process coordinate p) gets [cuts[p], cuts[p + 1]).
+    // cuts has dims()[axis] + 1 entries, rising strictly from the domain's low to its high
+    // face; throws Error otherwise. No communication (used for the exact light pass's
+    // work-balanced slabs, solvers/light/light_slabs.h).
+    Decomposition with_cuts(int axis, std::vector<int> cuts) const;
+    // Where the cells along `axis` are split: dims()[axis] + 1 values from low to high face.
+    std::vector<int> cuts(int axis) const;
+
     // First cell of part p when n cells are split into `parts` nearly equal parts (the split of
     // every axis; parts differ by at most one cell).
     static int split_lo(int n, int parts, int p) { return static_cast<int>((long long)n * p / parts); }
-    // Cells along `axis` of the thinnest rank box (the split gives floor(n / ranks) or one more).
-    int thinnest(int axis) const { return (global_.hi[axis] - global_.lo[axis]) / dims_[axis]; }
+    // Cells along `axis` of the thinnest rank box.
+    int thinnest(int axis) const;
 
 private:
 
@@ -54,6 +64,7 @@ private:
     Box global_{}, local_{};
     Int3 dims_{1, 1, 1}, coords_{0, 0, 0};
     std::array<bool, 3> periodic_{false, false, false};
+    std::array<std::vector<int>, 3> cuts_;  // per axis: empty for the even split, else as cuts()
 };
 
 }  // namespace nimbus

@@ -58,3 +58,47 @@ TEST(Decomposition, ProcessGridAlongXIsAllowed) {
 
 }  // namespace
 }  // namespace nimbus
+
+namespace nimbus {
+namespace {
+
+// with_cuts: the same ranks with the z layers split where asked; bad cuts are refused.
+TEST(Decomposition, CutsMoveTheSlabBoundaries) {
+    const int P = test::world_size();
+    const Decomposition d(MPI_COMM_WORLD, {5, 4, 3 * P + 4});
+    const int nz = 3 * P + 4;
+    std::vector<int> even = d.cuts(2);
+    ASSERT_EQ(even.size(), static_cast<size_t>(P + 1));
+    EXPECT_EQ(even.front(), 0);
+    EXPECT_EQ(even.back(), nz);
+    // Slab p gets p + 1 layers, the last one the rest.
+    std::vector<int> cuts{0};
+    for (int p = 0; p < P - 1; ++p) cuts.push_back(cuts.back() + p + 1);
+    cuts.push_back(nz);
+    const Decomposition c = d.with_cuts(2, cuts);
+    EXPECT_EQ(c.cuts(2), cuts);
+    EXPECT_EQ(c.rank(), d.rank());
+    EXPECT_EQ(c.dims(), d.dims());
+    EXPECT_EQ(c.thinnest(2), P == 1 ? nz : 1);
+    for (int r = 0; r < P; ++r) {
+        const Box b = c.box_of(r);
+        const int z = r;  // slabs along z: rank r is at z coordinate r (no reordering)
+        EXPECT_EQ(b.lo[2], cuts[static_cast<size_t>(z)]);
+        EXPECT_EQ(b.hi[2], cuts[static_cast<size_t>(z) + 1]);
+        EXPECT_EQ(b.size(0), 5);
+        EXPECT_EQ(b.size(1), 4);
+    }
+    EXPECT_EQ(c.local(), c.box_of(c.rank()));
+    EXPECT_EQ(d.cuts(2), even);  // the original is unchanged
+    std::vector<int> wrong_count = cuts;
+    wrong_count.push_back(nz);
+    std::vector<int> wrong_end = cuts;
+    wrong_end.back() = nz - 1;
+    std::vector<int> flat = cuts;
+    flat[0] = flat[1];
+    for (const auto& bad : {wrong_count, wrong_end, flat}) EXPECT_THROW(d.with_cuts(2, bad), Error);
+    EXPECT_THROW(d.with_cuts(3, cuts), Error);
+}
+
+}  // namespace
+}  // namespace nimbus

@@ -369,6 +369,13 @@ TEST(ExactLight, SlabChainEqualsBruteForceInAHeterogeneousMedium) {
                                                    {"low", normalized(Vec3{0.9, -0.4, -0.15}), {1.0}}};
         Report r;
         const auto lt = compute_light_transport(s.d, s.m, lights, r, {}, LightSpec::Method::exact);
+        if (size > 1 && medium == 0) {
+            // The dense medium is traced on balanced slabs of its own for both sides (light_slabs.h),
+            // so the density and each τ really move between the splits here.
+            const auto& slabs = r.values()["light"]["slabs"];
+            ASSERT_EQ(slabs.size(), 2u);
+            for (const auto& sl : slabs) EXPECT_NE(sl["z_cuts"], sl["field_z_cuts"]) << sl.dump();
+        }
         for (size_t l = 0; l < lights.size(); ++l)
             for_each_cell(s.d.local(), [&](int i, int j, int k) {
                 const double want = exact_tau_rho(full, n, 0.7, lights[l].w, i, j, k, periodic);
