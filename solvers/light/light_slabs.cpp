@@ -29,7 +29,7 @@ double ChainWork::mean_cost(const std::vector<int>& cuts, double setup) const {
     return cuts.size() > 1 ? s / static_cast<double>(cuts.size() - 1) : 0.0;
 }
 
-int pilot_stride(const Int3& n) { return std::clamp(std::min(n[0], n[1]) / 8, 1, 12); }
+int pilot_stride(const Int3& n) { return std::max(std::min(n[0], n[1]) / 8, 1); }
 
 ChainWork sample_chain_work(const Decomposition& d, RayGrid& slab, const std::vector<DirectionalLight>& lights,
                             int stride) {

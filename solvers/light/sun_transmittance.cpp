@@ -141,13 +141,13 @@ nlohmann::json exact_light_on_chain(const Decomposition& d, const Medium& m, con
             });
         }
         RayGrid& grid = own_slabs ? moved : field_grid;
+        // τ on the pass's slabs (no ghosts: its data are its cells, x fastest), reused by every light.
+        Field<double> piece = own_slabs ? Field<double>(ld.local(), 0, 1, 0.0) : Field<double>();
         for (const size_t l : sd.members) {
             Field<double>& tau = tau_rho[l];
             double busy = 0.0;
             if (own_slabs) {
-                Field<double> piece(ld.local(), 0, 1, 0.0);
                 exact_tau_chain(ld, grid, m.grid.h, lights[l], piece, &busy);
-                // piece has no ghosts: its data are its cells, x fastest.
                 const std::vector<double> mine = move_cells(ld, {piece.data(), piece.size()}, d);
                 const Box& own = d.local();
                 auto row = mine.begin();
