@@ -88,14 +88,15 @@ ChainWork sample_chain_work(const Decomposition& d, RayGrid& slab, const std::ve
             for (int a = 0; a < 2; ++a)
                 if (!d.periodic(a) && b[a] != 0.0)
                     t_side = std::min(t_side, (b[a] > 0 ? n[a] - pos[a] : pos[a]) / std::abs(b[a]));
-            const double z_side = pos[2] + t_side * b.z;  // ±inf when it never leaves sideways
+            // Where it leaves sideways, clamped to just beyond the z range (±inf when it never does).
+            const double z_side = std::clamp(pos[2] + t_side * b.z, -1.0, n[2] + 1.0);
             int f0, f1;  // faces crossed, [f0, f1], internal faces 1..nz-1 only
             if (b.z > 0) {
                 f0 = k + 1;
-                f1 = std::isfinite(z_side) ? std::min(n[2] - 1, static_cast<int>(std::ceil(z_side)) - 1) : n[2] - 1;
+                f1 = std::min(n[2] - 1, static_cast<int>(std::ceil(z_side)) - 1);
             } else {
                 f1 = k;
-                f0 = std::isfinite(z_side) ? std::max(1, static_cast<int>(std::floor(z_side)) + 1) : 1;
+                f0 = std::max(1, static_cast<int>(std::floor(z_side)) + 1);
             }
             if (f0 > f1) return;
             entering_diff[static_cast<size_t>(f0)] += 1.0;

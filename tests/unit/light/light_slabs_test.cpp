@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <functional>
+#include <numeric>
 #include <random>
 
 #include "solvers/light/light_slabs.h"
@@ -126,6 +127,34 @@ TEST(LightSlabs, ChainWorkOfAUniformMediumLitFromAboveThinsTheTopSlab) {
         EXPECT_LT(m.max_cost(cuts_up) / m.mean_cost(cuts_up), m.max_cost(field) / m.mean_cost(field));
     }
     EXPECT_THROW(sample_chain_work(d, slab, {sun[0], up[0]}, 2), Error);
+}
+
+TEST(LightSlabs, RaysCrossEveryFaceAboveUnlessTheyLeaveSideways) {
+    // An oblique sun: over periodic x/y every ray reaches the top, so face f is crossed by the
+    // rays of all layers below it; over closed x/y the rays that leave through a side are not,
+    // and a face is crossed by at most the rays that crossed the one below or started between.
+    const int P = test::world_size();
+    const Int3 n{16, 16, 6 * P + 6};
+    const std::vector<DirectionalLight> sun{{"sun", normalized(Vec3{0.5, -0.3, -1.0}), {1.0}}};
+    for (const bool periodic : {true, false}) {
+        const Decomposition d(MPI_COMM_WORLD, n, {0, 0, 0}, {periodic, periodic, false});
+        Field<double> rho(d.local(), 1, 1, 0.0);
+        for_each_cell(d.local(), [&](int i, int j, int k) { rho(i, j, k) = (i + j + k) % 3 == 0 ? 1.0 : 0.0; });
+        RayGrid slab = make_slab_grid(d, rho);
+        const ChainWork w = sample_chain_work(d, slab, sun, 4);  // 16 rays a layer
+        for (int f = 1; f < n[2]; ++f) {
+            if (periodic) {
+                EXPECT_EQ(w.entering[f], 16.0 * f) << f;
+            } else {
+                EXPECT_LE(w.entering[f], w.entering[f - 1] + w.starts[f - 1]) << f;
+                EXPECT_LE(w.entering[f], 16.0 * f) << f;
+            }
+        }
+        // The rays move 0.5 cells in -x per layer: those from x = 0.5 leave after one layer, so
+        // the top face sees fewer than all the rays below it.
+        if (!periodic) EXPECT_LT(w.entering[n[2] - 1], 16.0 * (n[2] - 1));
+        EXPECT_GT(std::accumulate(w.steps.begin(), w.steps.end(), 0.0), 0.0);
+    }
 }
 
 }  // namespace
