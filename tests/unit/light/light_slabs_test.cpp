@@ -152,7 +152,9 @@ TEST(LightSlabs, RaysCrossEveryFaceAboveUnlessTheyLeaveSideways) {
         }
         // The rays move 0.5 cells in -x per layer: those from x = 0.5 leave after one layer, so
         // the top face sees fewer than all the rays below it.
-        if (!periodic) EXPECT_LT(w.entering[n[2] - 1], 16.0 * (n[2] - 1));
+        if (!periodic) {
+            EXPECT_LT(w.entering[n[2] - 1], 16.0 * (n[2] - 1));
+        }
         EXPECT_GT(std::accumulate(w.steps.begin(), w.steps.end(), 0.0), 0.0);
     }
 }

@@ -387,3 +387,43 @@ TEST(ExactLight, SlabChainEqualsBruteForceInAHeterogeneousMedium) {
 
 }  // namespace
 }  // namespace nimbus
+
+namespace nimbus {
+namespace {
+
+// Two rays walked in lockstep give exactly what each gives alone: through empty-space jumps,
+// periodic wraps and exits, from cell centres and from points on faces, and when one of them
+// starts outside the grid.
+TEST(ExactLight, RaysWalkedInPairsEqualRaysWalkedAlone) {
+    const Int3 n{13, 11, 9};
+    auto rho_of = [](int i, int j, int k) {
+        const double v = 0.2 + std::fmod(0.37 * i + 1.3 * j * j + 0.71 * k * k, 2.0);
+        const bool ball = (i - 4) * (i - 4) + (j - 6) * (j - 6) + (k - 5) * (k - 5) < 10;
+        return ball || v > 2.0 ? v : 0.0;
+    };
+    for (const std::array<bool, 3> periodic : {std::array<bool, 3>{false, false, false}, std::array<bool, 3>{true, true, false}}) {
+        RayGrid g = make_ray_grid(Box{{0, 0, 0}, n}, n, periodic, rho_of);
+        for (const Vec3& b : {normalized(Vec3{0.55, 0.35, 0.76}), normalized(Vec3{-0.3, 0.6, -0.7}),
+                              normalized(Vec3{0.9, -0.4, 0.15}), Vec3{0, 0, 1}}) {
+            std::vector<std::array<double, 3>> starts;
+            for_each_cell(Box{{0, 0, 0}, n}, [&](int i, int j, int k) {
+                if ((i + 2 * j + 3 * k) % 5 == 0) starts.push_back({i + 0.5, j + 0.5, k + 0.5});
+            });
+            starts.push_back({4.0, 6.0, 5.0});     // on cell faces
+            starts.push_back({-3.0, 2.5, 4.5});    // outside x: no ray unless x is periodic
+            ASSERT_GT(starts.size(), 100u);
+            int nonzero = 0;
+            for (size_t q = 0; q + 1 < starts.size(); ++q) {
+                double a, c;
+                ray_integral_pair(g, b, starts[q], starts[q + 1], a, c);
+                EXPECT_EQ(a, ray_integral(g, b, starts[q])) << q;
+                EXPECT_EQ(c, ray_integral(g, b, starts[q + 1])) << q;
+                nonzero += a > 0;
+            }
+            EXPECT_GT(nonzero, 10);
+        }
+    }
+}
+
+}  // namespace
+}  // namespace nimbus
