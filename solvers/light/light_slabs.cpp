@@ -115,19 +115,32 @@ ChainWork sample_chain_work(const Decomposition& d, RayGrid& slab, const std::ve
 
 namespace {
 
+// ChainWork::slab_cost in O(1) for a light above (rays toward +z), from prefix sums.
+struct SlabCosts {
+    std::vector<double> prefix;  // prefix[k]: Σ over layers < k of steps + setup · starts
+    const std::vector<double>* entering;
+    double setup;
+    SlabCosts(const ChainWork& w, double s) : prefix(w.steps.size() + 1, 0.0), entering(&w.entering), setup(s) {
+        for (size_t k = 0; k < w.steps.size(); ++k) prefix[k + 1] = prefix[k] + w.steps[k] + s * w.starts[k];
+    }
+    double operator()(int lo, int hi) const {
+        return prefix[static_cast<size_t>(hi)] - prefix[static_cast<size_t>(lo)] +
+               setup * (*entering)[static_cast<size_t>(lo)];
+    }
+};
+
 // Greedy slabs from the light (the top: w toward high z) with cost at most `bound`: the cuts
 // from the top down, or an empty vector if more than `parts` slabs would be needed.
-std::vector<int> greedy_from_top(const ChainWork& w, int parts, double bound, double setup) {
-    const int nz = static_cast<int>(w.steps.size());
+std::vector<int> greedy_from_top(const SlabCosts& cost, int nz, int parts, double bound) {
     std::vector<int> cuts{nz};
     int hi = nz;
     while (hi > 0) {
         if (static_cast<int>(cuts.size()) > parts) return {};
-        if (w.slab_cost(hi - 1, hi, setup) > bound) return {};
+        if (cost(hi - 1, hi) > bound) return {};
         int lo = hi - 1;
-        // slab_cost grows as lo moves away from the light (each layer adds its steps; the entry
+        // The cost grows as lo moves away from the light (each layer adds its steps; the entry
         // face's rays are at most the next face's plus the layer's starts).
-        while (lo > 0 && w.slab_cost(lo - 1, hi, setup) <= bound) --lo;
+        while (lo > 0 && cost(lo - 1, hi) <= bound) --lo;
         cuts.push_back(lo);
         hi = lo;
     }
@@ -147,17 +160,17 @@ std::vector<int> balanced_cuts(const ChainWork& work, int parts, double setup) {
         std::reverse(w.entering.begin(), w.entering.end());
         w.toward_high_z = true;
     }
-    double lo = 0.0, hi = w.slab_cost(0, nz, setup);
-    for (int k = 0; k < nz; ++k) lo = std::max(lo, w.slab_cost(k, k + 1, setup));
-    std::vector<int> best = greedy_from_top(w, parts, hi, setup);
-    if (greedy_from_top(w, parts, lo, setup).empty()) {
+    const SlabCosts cost(w, setup);
+    double lo = 0.0, hi = cost(0, nz);
+    for (int k = 0; k < nz; ++k) lo = std::max(lo, cost(k, k + 1));
+    std::vector<int> best = greedy_from_top(cost, nz, parts, lo);
+    if (best.empty()) {
+        best = greedy_from_top(cost, nz, parts, hi);
         for (int it = 0; it < 200 && hi - lo > 1e-12 * hi; ++it) {
             const double mid = 0.5 * (lo + hi);
-            std::vector<int> c = greedy_from_top(w, parts, mid, setup);
+            std::vector<int> c = greedy_from_top(cost, nz, parts, mid);
             if (c.empty()) lo = mid; else hi = mid, best = std::move(c);
         }
-    } else {
-        best = greedy_from_top(w, parts, lo, setup);
     }
     std::reverse(best.begin(), best.end());  // z order: 0 ... nz
     // Fewer slabs than parts: split the thickest (splitting never raises a slab's cost).
