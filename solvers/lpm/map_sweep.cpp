@@ -10,6 +10,7 @@
 #include "solvers/lpm/segment_kernel.h"
 #include "solvers/sweep/chain.h"
 #include "src/core/halo.h"
+#include "src/core/mpi_counts.h"
 
 namespace nimbus::lpm {
 namespace {
@@ -691,14 +692,10 @@ bool MapSweep::pass_ends_sweep(long t) {
 void MapSweep::exchange_crossing_rays() {
     pack_crossing_rays();
     const double t0 = MPI_Wtime();
-    MPI_Sendrecv(to_hi_.data(), sl_.nb_hi ? static_cast<int>(to_hi_.size()) : 0, MPI_DOUBLE,
-                 sl_.nb_hi ? z_hi_ : MPI_PROC_NULL, 950, from_lo_.data(),
-                 static_cast<int>(from_lo_.size()), MPI_DOUBLE, sl_.nb_lo ? z_lo_ : MPI_PROC_NULL,
-                 950, d_.comm(), MPI_STATUS_IGNORE);
-    MPI_Sendrecv(to_lo_.data(), sl_.nb_lo ? static_cast<int>(to_lo_.size()) : 0, MPI_DOUBLE,
-                 sl_.nb_lo ? z_lo_ : MPI_PROC_NULL, 951, from_hi_.data(),
-                 static_cast<int>(from_hi_.size()), MPI_DOUBLE, sl_.nb_hi ? z_hi_ : MPI_PROC_NULL,
-                 951, d_.comm(), MPI_STATUS_IGNORE);
+    sendrecv_doubles(std::span<const double>(to_hi_.data(), sl_.nb_hi ? to_hi_.size() : 0),
+                     sl_.nb_hi ? z_hi_ : MPI_PROC_NULL, from_lo_, sl_.nb_lo ? z_lo_ : MPI_PROC_NULL, 950, d_.comm());
+    sendrecv_doubles(std::span<const double>(to_lo_.data(), sl_.nb_lo ? to_lo_.size() : 0),
+                     sl_.nb_lo ? z_lo_ : MPI_PROC_NULL, from_hi_, sl_.nb_hi ? z_hi_ : MPI_PROC_NULL, 951, d_.comm());
     acc_.wait_seconds += MPI_Wtime() - t0;
     unpack_crossing_rays();
 }

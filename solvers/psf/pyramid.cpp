@@ -90,9 +90,7 @@ Field<double> allgather_slabs(const Field<double>& f, const Int3& n,
         counts.push_back((hi - lo) * layer);
     }
     Field<double> all(Box{{0, 0, 0}, n}, 0, nc, 0.0);
-    const BlockCounts bc(comm, counts, displs, MPI_DOUBLE, {static_cast<std::int64_t>(mine.size())});
-    MPI_Allgatherv(mine.data(), bc.blocks(static_cast<std::int64_t>(mine.size())), bc.type(), all.data(),
-                   bc.counts(), bc.displs(), bc.type(), comm);
+    allgatherv_doubles(comm, mine, all.data(), counts, displs);
     return all;
 }
 

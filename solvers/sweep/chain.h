@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "src/core/decomposition.h"
+#include "src/core/mpi_counts.h"
 
 namespace nimbus::sweep {
 
@@ -140,8 +141,7 @@ ChainStats pass_down(const Decomposition& d, int dir, const ChainGroups& groups,
         if (send) {
             sent.push_back({MPI_REQUEST_NULL, std::move(out)});
             Sent& s = sent.back();
-            MPI_Isend(s.buf.data(), static_cast<int>(n), MPI_DOUBLE, link.down, io.tag_, d.comm(),
-                      &s.req);
+            isend_doubles(s.buf, link.down, io.tag_, d.comm(), &s.req);
         }
     }
     // The last sends complete when downstream takes them (a large message waits for the
@@ -155,8 +155,7 @@ ChainStats pass_down(const Decomposition& d, int dir, const ChainGroups& groups,
 inline std::span<const double> ChainIO::in() {
     if (!received_ && up_ != MPI_PROC_NULL) {
         const double t0 = MPI_Wtime();
-        MPI_Recv(in_->data(), static_cast<int>(in_->size()), MPI_DOUBLE, up_, tag_, comm_,
-                 MPI_STATUS_IGNORE);
+        recv_doubles(*in_, up_, tag_, comm_);
         *wait_ += MPI_Wtime() - t0;
     }
     received_ = true;

@@ -13,6 +13,7 @@
 // (at the domain boundary) whatever the caller put in the ghosts before the sweep.
 #pragma once
 
+#include <fmt/format.h>
 #include <mpi.h>
 
 #include <algorithm>
@@ -20,7 +21,9 @@
 
 #include "solvers/sweep/order.h"
 #include "src/core/decomposition.h"
+#include "src/core/error.h"
 #include "src/core/field.h"
+#include "src/core/mpi_counts.h"
 
 namespace nimbus::sweep {
 
@@ -36,21 +39,48 @@ struct SweepStats {
 
 namespace detail {
 
-// Copies the plane `at` of axis over the cell range r (other axes) between psi and buf.
-template <bool kPack>
-inline void copy_plane(Field<double>& psi, int axis, int at, const Box& r, std::vector<double>& buf) {
-    Box p = r;
-    p.lo[axis] = at;
-    p.hi[axis] = at + 1;
-    const int nc = psi.ncomp();
-    buf.resize(static_cast<size_t>(p.cells() * nc));
-    size_t n = 0;
-    for_each_cell(p, [&](int i, int j, int k) {
-        double* v = &psi(i, j, k);
-        for (int c = 0; c < nc; ++c, ++n) {
-            if constexpr (kPack) buf[n] = v[c]; else v[c] = buf[n];
-        }
-    });
+// The set-up run() and run_octants() share: this rank's box cut into tiles along y, and the
+// planes it exchanges with its neighbours. The octant enters only through its signs.
+struct Tiling {
+    Box own;
+    int ny, rows, ntiles;  // rows of own along y, rows per tile, tiles
+
+    // Tiles along y only when y is not split over ranks (then a y-face is whole per tile).
+    Tiling(const Decomposition& d, const SweepOptions& opt)
+        : own(d.local()),
+          ny(own.size(1)),
+          rows(d.dims()[1] == 1 ? std::clamp(opt.tile_rows, 1, std::max(1, ny)) : std::max(1, ny)),
+          ntiles((ny + rows - 1) / rows) {}
+
+    // Tile t of octant o: rows [t rows, (t + 1) rows) of own (the last tile may be shorter),
+    // counted from o's upwind side along y.
+    Box tile(const Octant& o, int t) const {
+        Box b = own;
+        const int a = t * rows, e = std::min(ny, a + rows);
+        if (o.s[1] > 0) { b.lo[1] = own.lo[1] + a; b.hi[1] = own.lo[1] + e; }
+        else { b.lo[1] = own.hi[1] - e; b.hi[1] = own.hi[1] - a; }
+        return b;
+    }
+    // The ghost plane just outside own on the upwind side of `axis` (the upstream rank fills it),
+    // over r's extent on the other axes.
+    Box upwind_plane(const Octant& o, int axis, const Box& r) const {
+        const int at = o.s[axis] > 0 ? own.lo[axis] - 1 : own.hi[axis];
+        return r.with_range(axis, at, at + 1);
+    }
+    // own's last plane on the downwind side of `axis` (sent downstream), over r's extent.
+    Box downwind_plane(const Octant& o, int axis, const Box& r) const {
+        const int at = o.s[axis] > 0 ? own.hi[axis] - 1 : own.lo[axis];
+        return r.with_range(axis, at, at + 1);
+    }
+};
+
+// The rank one step along o's direction on each axis (side +1: downstream) or against it (side
+// -1: upstream). MPI_PROC_NULL at the domain boundary and along periodic axes, which are not
+// swept across: the caller handles periodic sweeps by iteration. Not collective.
+inline Int3 neighbours(const Decomposition& d, const Octant& o, int side) {
+    Int3 r{};
+    for (int a = 0; a < 3; ++a) r[a] = d.periodic(a) ? MPI_PROC_NULL : d.neighbor(a, side * o.s[a]);
+    return r;
 }
 
 }  // namespace detail
@@ -61,44 +91,29 @@ template <class Kernel>
 SweepStats run(const Decomposition& d, Field<double>& psi, const Octant& o, const SweepOptions& opt,
                Kernel&& kernel) {
     SweepStats stats;
-    const Box& own = d.local();
     constexpr int kTag = 811;
-    // Upstream/downstream neighbour per axis (MPI_PROC_NULL at the domain boundary; periodic
-    // axes are not swept across: the caller handles periodic sweeps by iteration).
-    Int3 up{}, down{};
-    for (int a = 0; a < 3; ++a) {
-        up[a] = d.periodic(a) ? MPI_PROC_NULL : d.neighbor(a, -o.s[a]);
-        down[a] = d.periodic(a) ? MPI_PROC_NULL : d.neighbor(a, o.s[a]);
-    }
-    // Tiles along y only when y is not split over ranks (then a y-face is whole per tile).
-    const int ny = own.size(1);
-    const int rows = (d.dims()[1] == 1) ? std::clamp(opt.tile_rows, 1, std::max(1, ny)) : std::max(1, ny);
-    const int ntiles = (ny + rows - 1) / rows;
-    // Ghost planes that the upstream ranks fill: the plane just outside own box on the upwind side.
-    auto upwind_ghost = [&](int a) { return o.s[a] > 0 ? own.lo[a] - 1 : own.hi[a]; };
-    auto downwind_edge = [&](int a) { return o.s[a] > 0 ? own.hi[a] - 1 : own.lo[a]; };
+    const detail::Tiling tiling(d, opt);
+    const Box& own = tiling.own;
+    const int ntiles = tiling.ntiles;
+    const Int3 up = detail::neighbours(d, o, -1), down = detail::neighbours(d, o, +1);
 
     std::vector<double> buf;
     std::vector<std::vector<double>> out(static_cast<size_t>(ntiles) + 2);
     std::vector<MPI_Request> sends;
     auto recv_plane = [&](int axis, const Box& r) {
         if (up[axis] == MPI_PROC_NULL) return;
-        Box p = r;
-        p.lo[axis] = upwind_ghost(axis);
-        p.hi[axis] = p.lo[axis] + 1;
+        const Box p = tiling.upwind_plane(o, axis, r);
         buf.resize(static_cast<size_t>(p.cells() * psi.ncomp()));
         const double t0 = MPI_Wtime();
-        MPI_Recv(buf.data(), static_cast<int>(buf.size()), MPI_DOUBLE, up[axis], kTag + axis, d.comm(),
-                 MPI_STATUS_IGNORE);
+        recv_doubles(buf, up[axis], kTag + axis, d.comm());
         stats.wait_seconds += MPI_Wtime() - t0;
-        detail::copy_plane<false>(psi, axis, p.lo[axis], r, buf);
+        copy_cells<CopyMode::unpack>(psi, p, buf);
     };
     auto send_plane = [&](int axis, const Box& r, std::vector<double>& store) {
         if (down[axis] == MPI_PROC_NULL) return;
-        detail::copy_plane<true>(psi, axis, downwind_edge(axis), r, store);
+        copy_cells<CopyMode::pack>(psi, tiling.downwind_plane(o, axis, r), store);
         sends.emplace_back();
-        MPI_Isend(store.data(), static_cast<int>(store.size()), MPI_DOUBLE, down[axis], kTag + axis,
-                  d.comm(), &sends.back());
+        isend_doubles(store, down[axis], kTag + axis, d.comm(), &sends.back());
     };
 
     // Whole x and y faces come first (only non-empty with 2-D/3-D process grids).
@@ -107,11 +122,7 @@ SweepStats run(const Decomposition& d, Field<double>& psi, const Octant& o, cons
     const AxisRange rx = upwind_range(own, 0, o);
     const AxisRange rz = upwind_range(own, 2, o);
     for (int t = 0; t < ntiles; ++t) {
-        // Tile t covers rows [j0, j1) in upwind order along y.
-        Box tile = own;
-        const int a = t * rows, b = std::min(ny, a + rows);
-        if (o.s[1] > 0) { tile.lo[1] = own.lo[1] + a; tile.hi[1] = own.lo[1] + b; }
-        else { tile.lo[1] = own.hi[1] - b; tile.hi[1] = own.hi[1] - a; }
+        const Box tile = tiling.tile(o, t);
         recv_plane(2, tile);
         const AxisRange ty = upwind_range(tile, 1, o);
         for (int k = rz.first; k != rz.end; k += rz.step)
@@ -130,8 +141,8 @@ SweepStats run(const Decomposition& d, Field<double>& psi, const Octant& o, cons
 // overlapped so the pipe stays full", DESIGN §3). Octant q has its own field psi[q] (>= 1 ghost
 // layer, any ncomp) and its own message tags, so a +z and a -z octant run concurrently from the
 // opposite ends of the slab chain, and the pipeline fill of one octant is covered by another's
-// work. Same tiles and the same per-octant cell order as run(), so every psi[q] equals what
-// run() gives for that octant alone, bit for bit.
+// work. Same tiles (detail::Tiling) and the same per-octant cell order as run(), so every psi[q]
+// equals what run() gives for that octant alone, bit for bit.
 //
 // Scheduling: all upstream planes are pre-posted (MPI_Irecv); a rank repeatedly computes the
 // next tile of any octant whose upstream planes have arrived (MPI_Test), preferring octants it
@@ -139,7 +150,8 @@ SweepStats run(const Decomposition& d, Field<double>& psi, const Octant& o, cons
 // it blocks in MPI_Waitany (counted as wait time). Octants are independent: whatever order the
 // tiles run in, each octant's cells see their final upwind values (storage contract above).
 //
-// Collective over d.comm(): every rank passes the same octant list (at most kMaxOctants).
+// Collective over d.comm(): every rank passes the same octant list, at most kMaxOctants (more
+// throws Error on every rank before any message: their tags would run into LPM's 950).
 // kernel(q, i, j, k) computes owned cell (i, j, k) of psi[q]. Ghost planes at the domain
 // boundary are the caller's, as in run(). Memory: the upstream and downstream planes of every
 // octant in flight (one slab face each way, x ncomp).
@@ -149,12 +161,14 @@ template <class Kernel>
 SweepStats run_octants(const Decomposition& d, const std::vector<Field<double>*>& psi, const std::vector<Octant>& octants,
                        const SweepOptions& opt, Kernel&& kernel) {
     SweepStats stats;
-    const Box& own = d.local();
     const int nq = static_cast<int>(octants.size());
-    constexpr int kTagBase = 900;  // octant q, axis a: kTagBase + 3 q + a (run() uses 811-813)
-    const int ny = own.size(1);
-    const int rows = (d.dims()[1] == 1) ? std::clamp(opt.tile_rows, 1, std::max(1, ny)) : std::max(1, ny);
-    const int ntiles = (ny + rows - 1) / rows;
+    if (nq > kMaxOctants)
+        throw Error(fmt::format("sweep::run_octants: {} octants at once, but only {} have message tags", nq,
+                                kMaxOctants));
+    constexpr int kTagBase = 900;  // octant q, axis a: kTagBase + 3 q + a, up to 923 (run() uses 811-813)
+    const detail::Tiling tiling(d, opt);
+    const Box& own = tiling.own;
+    const int ntiles = tiling.ntiles;
 
     struct State {
         Field<double>* psi = nullptr;
@@ -172,45 +186,27 @@ SweepStats run_octants(const Decomposition& d, const std::vector<Field<double>*>
     std::vector<std::vector<double>> out;  // send buffers, alive until the final Waitall
     out.reserve(static_cast<size_t>(nq * (ntiles + 2)));
 
-    auto tile_box = [&](const Octant& o, int t) {
-        Box tile = own;
-        const int a = t * rows, b = std::min(ny, a + rows);
-        if (o.s[1] > 0) { tile.lo[1] = own.lo[1] + a; tile.hi[1] = own.lo[1] + b; }
-        else { tile.lo[1] = own.hi[1] - b; tile.hi[1] = own.hi[1] - a; }
-        return tile;
-    };
-    auto plane_of = [&](const Octant& o, int axis, const Box& r, bool upwind) {
-        Box p = r;
-        p.lo[axis] = upwind ? (o.s[axis] > 0 ? own.lo[axis] - 1 : own.hi[axis])
-                            : (o.s[axis] > 0 ? own.hi[axis] - 1 : own.lo[axis]);
-        p.hi[axis] = p.lo[axis] + 1;
-        return p;
-    };
     // Pre-post every receive, in tile order (same source and tag: MPI keeps them in order).
     for (int q = 0; q < nq; ++q) {
         State& s = st[static_cast<size_t>(q)];
         s.psi = psi[static_cast<size_t>(q)];
         s.o = octants[static_cast<size_t>(q)];
-        for (int a = 0; a < 3; ++a) {
-            s.up[a] = d.periodic(a) ? MPI_PROC_NULL : d.neighbor(a, -s.o.s[a]);
-            s.down[a] = d.periodic(a) ? MPI_PROC_NULL : d.neighbor(a, s.o.s[a]);
-        }
+        s.up = detail::neighbours(d, s.o, -1);
+        s.down = detail::neighbours(d, s.o, +1);
         const int nc = s.psi->ncomp();
         for (int a = 0; a < 2; ++a) {
             if (s.up[a] == MPI_PROC_NULL) continue;
             auto& b = s.face_buf[a];
-            b.resize(static_cast<size_t>(plane_of(s.o, a, own, true).cells() * nc));
-            MPI_Irecv(b.data(), static_cast<int>(b.size()), MPI_DOUBLE, s.up[a], kTagBase + 3 * q + a, d.comm(),
-                      &s.face_req[a]);
+            b.resize(static_cast<size_t>(tiling.upwind_plane(s.o, a, own).cells() * nc));
+            irecv_doubles(b, s.up[a], kTagBase + 3 * q + a, d.comm(), &s.face_req[a]);
         }
         s.z_req.assign(static_cast<size_t>(ntiles), MPI_REQUEST_NULL);
         s.z_buf.resize(static_cast<size_t>(ntiles));
         if (s.up[2] == MPI_PROC_NULL) continue;
         for (int t = 0; t < ntiles; ++t) {
             auto& b = s.z_buf[static_cast<size_t>(t)];
-            b.resize(static_cast<size_t>(plane_of(s.o, 2, tile_box(s.o, t), true).cells() * nc));
-            MPI_Irecv(b.data(), static_cast<int>(b.size()), MPI_DOUBLE, s.up[2], kTagBase + 3 * q + 2, d.comm(),
-                      &s.z_req[static_cast<size_t>(t)]);
+            b.resize(static_cast<size_t>(tiling.upwind_plane(s.o, 2, tiling.tile(s.o, t)).cells() * nc));
+            irecv_doubles(b, s.up[2], kTagBase + 3 * q + 2, d.comm(), &s.z_req[static_cast<size_t>(t)]);
         }
     }
     // The request octant q's next tile still waits for (nullptr: ready).
@@ -228,21 +224,20 @@ SweepStats run_octants(const Decomposition& d, const std::vector<Field<double>*>
     auto send = [&](State& s, int q, int axis, const Box& r) {
         if (s.down[axis] == MPI_PROC_NULL) return;
         out.emplace_back();
-        detail::copy_plane<true>(*s.psi, axis, plane_of(s.o, axis, r, false).lo[axis], r, out.back());
+        copy_cells<CopyMode::pack>(*s.psi, tiling.downwind_plane(s.o, axis, r), out.back());
         sends.emplace_back();
-        MPI_Isend(out.back().data(), static_cast<int>(out.back().size()), MPI_DOUBLE, s.down[axis],
-                  kTagBase + 3 * q + axis, d.comm(), &sends.back());
+        isend_doubles(out.back(), s.down[axis], kTagBase + 3 * q + axis, d.comm(), &sends.back());
     };
     auto run_tile = [&](State& s, int q) {
         if (!s.faces_unpacked) {
             for (int a = 0; a < 2; ++a)
                 if (s.up[a] != MPI_PROC_NULL)
-                    detail::copy_plane<false>(*s.psi, a, plane_of(s.o, a, own, true).lo[a], own, s.face_buf[a]);
+                    copy_cells<CopyMode::unpack>(*s.psi, tiling.upwind_plane(s.o, a, own), s.face_buf[a]);
             s.faces_unpacked = true;
         }
-        const Box tile = tile_box(s.o, s.next);
+        const Box tile = tiling.tile(s.o, s.next);
         if (s.up[2] != MPI_PROC_NULL)
-            detail::copy_plane<false>(*s.psi, 2, plane_of(s.o, 2, tile, true).lo[2], tile, s.z_buf[static_cast<size_t>(s.next)]);
+            copy_cells<CopyMode::unpack>(*s.psi, tiling.upwind_plane(s.o, 2, tile), s.z_buf[static_cast<size_t>(s.next)]);
         const AxisRange rx = upwind_range(own, 0, s.o), ty = upwind_range(tile, 1, s.o), rz = upwind_range(own, 2, s.o);
         for (int k = rz.first; k != rz.end; k += rz.step)
             for (int j = ty.first; j != ty.end; j += ty.step)

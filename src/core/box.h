@@ -25,6 +25,13 @@ struct Box {
     Box grown(int g) const {
         return {{lo[0] - g, lo[1] - g, lo[2] - g}, {hi[0] + g, hi[1] + g, hi[2] + g}};
     }
+    // This box with its range along `axis` replaced by [a, b) (a layer or a slab of it).
+    Box with_range(int axis, int a, int b) const {
+        Box r = *this;
+        r.lo[axis] = a;
+        r.hi[axis] = b;
+        return r;
+    }
     Box intersect(const Box& o) const {
         Box r;
         for (int d = 0; d < 3; ++d) {

@@ -62,14 +62,33 @@ private:
     std::vector<T> data_;
 };
 
-using ScalarField = Field<double>;
-
 // Calls fn(i, j, k) for every cell of box b, x fastest.
 template <class Fn>
 inline void for_each_cell(const Box& b, Fn&& fn) {
     for (int k = b.lo[2]; k < b.hi[2]; ++k)
         for (int j = b.lo[1]; j < b.hi[1]; ++j)
             for (int i = b.lo[0]; i < b.hi[0]; ++i) fn(i, j, k);
+}
+
+enum class CopyMode { pack, unpack, add };
+
+// The cells of box b (inside f.allocated()), all components, in for_each_cell order with the
+// components innermost: copied into buf (pack; buf is resized to fit), from buf (unpack), or
+// added in from buf (add). Message packing of halo layers and sweep planes.
+template <CopyMode kMode, class T>
+inline void copy_cells(Field<T>& f, const Box& b, std::vector<T>& buf) {
+    const int nc = f.ncomp();
+    if constexpr (kMode == CopyMode::pack) buf.resize(static_cast<size_t>(b.cells() * nc));
+    assert(buf.size() == static_cast<size_t>(b.cells() * nc));
+    size_t n = 0;
+    for_each_cell(b, [&](int i, int j, int k) {
+        T* v = &f(i, j, k);
+        for (int c = 0; c < nc; ++c, ++n) {
+            if constexpr (kMode == CopyMode::pack) buf[n] = v[c];
+            else if constexpr (kMode == CopyMode::unpack) v[c] = buf[n];
+            else v[c] += buf[n];
+        }
+    });
 }
 
 }  // namespace nimbus

@@ -1,7 +1,5 @@
 #include "src/core/gather.h"
 
-#include <mpi.h>
-
 #include "src/core/mpi_counts.h"
 
 namespace nimbus {
@@ -20,9 +18,7 @@ std::vector<double> allgather_global(const Field<double>& f, const Decomposition
     }
     std::vector<double> packed(static_cast<size_t>(d.global().cells()));
     // In blocks when a count passes 2^31 (mpi_counts.h): slabs give whole layers.
-    const BlockCounts bc(d.comm(), counts, displs, MPI_DOUBLE, {static_cast<std::int64_t>(mine.size())});
-    MPI_Allgatherv(mine.data(), bc.blocks(static_cast<std::int64_t>(mine.size())), bc.type(), packed.data(),
-                   bc.counts(), bc.displs(), bc.type(), d.comm());
+    allgatherv_doubles(d.comm(), mine, packed.data(), counts, displs);
     // Unpack each rank's box (x fastest within it) into the global C-order array.
     const Int3 n = d.global().hi;
     std::vector<double> global(packed.size());

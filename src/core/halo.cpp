@@ -5,32 +5,9 @@
 #include <vector>
 
 #include "src/core/error.h"
+#include "src/core/mpi_counts.h"
 
 namespace nimbus {
-namespace {
-
-enum class Slab { pack, unpack, add };
-
-// Copies the slab of f between [a, b) along `axis` (other axes over the allocated box, so
-// edges and corners propagate) to a buffer (pack), or from it (unpack), or adds it in (add).
-template <Slab kMode>
-void copy_slab(Field<double>& f, int axis, int a, int b, std::vector<double>& buf) {
-    Box s = f.allocated();
-    s.lo[axis] = a;
-    s.hi[axis] = b;
-    const int nc = f.ncomp();
-    buf.resize(static_cast<size_t>(s.cells() * nc));
-    size_t n = 0;
-    for_each_cell(s, [&](int i, int j, int k) {
-        for (int c = 0; c < nc; ++c, ++n) {
-            if constexpr (kMode == Slab::pack) buf[n] = f(i, j, k, c);
-            else if constexpr (kMode == Slab::unpack) f(i, j, k, c) = buf[n];
-            else f(i, j, k, c) += buf[n];
-        }
-    });
-}
-
-}  // namespace
 
 void exchange_halo(Field<double>& f, const Decomposition& d) {
     const int g = f.ghost();
@@ -52,16 +29,14 @@ void exchange_halo(Field<double>& f, const Decomposition& d) {
             const int to = dir > 0 ? hi_nb : lo_nb, from = dir > 0 ? lo_nb : hi_nb;
             const int s0 = dir > 0 ? own.hi[axis] - depth : own.lo[axis];
             const int r0 = dir > 0 ? own.lo[axis] - depth : own.hi[axis];
-            if (to != MPI_PROC_NULL) copy_slab<Slab::pack>(f, axis, s0, s0 + depth, send);
+            // Slabs over the allocated extent of the other axes, so edges and corners propagate.
+            const Box ss = f.allocated().with_range(axis, s0, s0 + depth);
+            const Box rs = f.allocated().with_range(axis, r0, r0 + depth);
+            if (to != MPI_PROC_NULL) copy_cells<CopyMode::pack>(f, ss, send);
             else send.clear();
-            Box rs = f.allocated();
-            rs.lo[axis] = r0;
-            rs.hi[axis] = r0 + depth;
             recv.resize(from != MPI_PROC_NULL ? static_cast<size_t>(rs.cells() * f.ncomp()) : 0);
-            MPI_Sendrecv(send.data(), static_cast<int>(send.size()), MPI_DOUBLE, to, 700 + axis,
-                         recv.data(), static_cast<int>(recv.size()), MPI_DOUBLE, from, 700 + axis,
-                         d.comm(), MPI_STATUS_IGNORE);
-            if (from != MPI_PROC_NULL) copy_slab<Slab::unpack>(f, axis, r0, r0 + depth, recv);
+            sendrecv_doubles(send, to, recv, from, 700 + axis, d.comm());
+            if (from != MPI_PROC_NULL) copy_cells<CopyMode::unpack>(f, rs, recv);
         }
     }
 }
@@ -75,15 +50,13 @@ void accumulate_halo(Field<double>& f, const Decomposition& d, int axis) {
         const int to = d.neighbor(axis, dir), from = d.neighbor(axis, -dir);
         const int ghost = dir > 0 ? own.hi[axis] : own.lo[axis] - 1;
         const int edge = dir > 0 ? own.lo[axis] : own.hi[axis] - 1;
-        if (to != MPI_PROC_NULL) copy_slab<Slab::pack>(f, axis, ghost, ghost + 1, send);
+        const Box ss = f.allocated().with_range(axis, ghost, ghost + 1);
+        const Box rs = f.allocated().with_range(axis, edge, edge + 1);
+        if (to != MPI_PROC_NULL) copy_cells<CopyMode::pack>(f, ss, send);
         else send.clear();
-        Box rs = f.allocated();
-        rs.lo[axis] = edge;
-        rs.hi[axis] = edge + 1;
         recv.assign(from != MPI_PROC_NULL ? static_cast<size_t>(rs.cells() * f.ncomp()) : 0, 0.0);
-        MPI_Sendrecv(send.data(), static_cast<int>(send.size()), MPI_DOUBLE, to, 720 + axis, recv.data(),
-                     static_cast<int>(recv.size()), MPI_DOUBLE, from, 720 + axis, d.comm(), MPI_STATUS_IGNORE);
-        if (from != MPI_PROC_NULL) copy_slab<Slab::add>(f, axis, edge, edge + 1, recv);
+        sendrecv_doubles(send, to, recv, from, 720 + axis, d.comm());
+        if (from != MPI_PROC_NULL) copy_cells<CopyMode::add>(f, rs, recv);
     }
     const int nc = f.ncomp();
     for_each_cell(f.allocated(), [&](int i, int j, int k) {

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "solvers/sweep/sweep.h"
+#include "src/core/error.h"
 #include "tests/support/mpi_test.h"
 
 namespace nimbus {
@@ -92,6 +93,22 @@ TEST(SweepEngine, OneOctantEqualsRun) {
     const Int3 n{6, 5, 7};
     const Decomposition d(MPI_COMM_WORLD, n);
     for (int oct = 0; oct < 8; ++oct) check_group(d, n, {oct}, 2);
+}
+
+// More octants than have message tags (their tags would reach LPM's 950): Error on every rank,
+// before any message (a rank left in MPI would hang the test).
+TEST(SweepEngine, MoreThanEightOctantsThrow) {
+    const Int3 n{4, 4, 4};
+    const Decomposition d(MPI_COMM_WORLD, n);
+    std::vector<Field<double>> fields;
+    std::vector<sweep::Octant> octants;
+    for (int q = 0; q <= sweep::kMaxOctants; ++q) {
+        fields.emplace_back(d.local(), 1, kComp, 0.0);
+        octants.push_back(octant(q % 8));
+    }
+    std::vector<Field<double>*> psi;
+    for (auto& f : fields) psi.push_back(&f);
+    EXPECT_THROW(sweep::run_octants(d, psi, octants, sweep::SweepOptions{}, [](int, int, int, int) {}), Error);
 }
 
 }  // namespace
