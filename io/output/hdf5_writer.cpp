@@ -156,7 +156,8 @@ void Hdf5Writer::open(const Decomposition& d, const Grid& grid, OutputFiles& fil
     {
         h5::QuietErrors quiet;
         h5::Handle fapl = h5::plist_handle(H5Pcreate(H5P_FILE_ACCESS));
-        H5Pset_fapl_mpio(fapl.get(), comm, MPI_INFO_NULL);
+        // Without the MPI-IO driver every rank would create the file on its own.
+        check_collective(comm, H5Pset_fapl_mpio(fapl.get(), comm, MPI_INFO_NULL) >= 0, h5::kNoMpioDriver);
         impl->file = h5::file_handle(
             H5Fcreate(impl->tmp_path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()));
     }
@@ -225,17 +226,18 @@ void Hdf5Writer::write_field(const std::string& name, const Field<double>& f,
         ok = dset.valid();
         if (ok) {
             h5::Handle mem_space = h5::space_handle(H5Screate_simple(rank, count, nullptr));
+            herr_t selected = 0;
             if (b.empty()) {
-                H5Sselect_none(file_space.get());
-                H5Sselect_none(mem_space.get());
+                selected = std::min(H5Sselect_none(file_space.get()), H5Sselect_none(mem_space.get()));
             } else {
-                H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count,
-                                    nullptr);
+                selected = H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count,
+                                               nullptr);
             }
             h5::Handle dxpl = h5::plist_handle(H5Pcreate(H5P_DATASET_XFER));
-            H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE);
+            const herr_t collective = H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE);
+            // Every rank takes part in the (collective) write whatever its own set-up gave.
             ok = H5Dwrite(dset.get(), H5T_NATIVE_FLOAT, mem_space.get(), file_space.get(),
-                          dxpl.get(), values.data()) >= 0;
+                          dxpl.get(), values.data()) >= 0 && selected >= 0 && collective >= 0;
             ok = h5::write_string_attribute(dset.get(), "units", units) && ok;
             ok = h5::write_string_attribute(dset.get(), "description", description) && ok;
         }

@@ -17,47 +17,16 @@
 #include <new>
 #include <vector>
 
+#include "io/hdf5_handle.h"
 #include "src/core/error.h"
 #include "src/core/halo.h"
+#include "src/core/mpi_counts.h"
 #include "src/scene/medium.h"
 
 namespace nimbus {
 namespace {
 
 namespace fs = std::filesystem;
-
-// RAII handle for an hid_t with its close function.
-class H5Handle {
-public:
-    H5Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
-    ~H5Handle() {
-        if (id_ >= 0) close_(id_);
-    }
-    H5Handle(const H5Handle&) = delete;
-    H5Handle& operator=(const H5Handle&) = delete;
-    hid_t get() const { return id_; }
-    bool ok() const { return id_ >= 0; }
-
-private:
-    hid_t id_;
-    herr_t (*close_)(hid_t);
-};
-
-// Silences HDF5's error-stack printing while alive: failures become our one-line Errors.
-class H5Quiet {
-public:
-    H5Quiet() {
-        H5Eget_auto2(H5E_DEFAULT, &func_, &data_);
-        H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
-    }
-    ~H5Quiet() { H5Eset_auto2(H5E_DEFAULT, func_, data_); }
-    H5Quiet(const H5Quiet&) = delete;
-    H5Quiet& operator=(const H5Quiet&) = delete;
-
-private:
-    H5E_auto2_t func_ = nullptr;
-    void* data_ = nullptr;
-};
 
 // Rank 0 checks that the file exists (and, for raw, its size); the verdict is collective.
 void check_file(const MediumSpec& spec, MPI_Comm comm, std::int64_t raw_bytes) {
@@ -86,25 +55,25 @@ void read_hdf5(const MediumSpec& spec, const Decomposition& d, std::vector<doubl
     const MPI_Comm comm = d.comm();
     const Box& b = d.local();
     const Int3& n = d.global().hi;
-    const H5Quiet quiet;
+    const h5::QuietErrors quiet;
 
-    const H5Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
-    H5Pset_fapl_mpio(fapl.get(), comm, MPI_INFO_NULL);
-    const H5Handle file(H5Fopen(spec.file.c_str(), H5F_ACC_RDONLY, fapl.get()), H5Fclose);
-    check_collective(comm, file.ok(), fmt::format("{}: cannot open as an HDF5 file", spec.file));
+    const h5::Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+    check_collective(comm, H5Pset_fapl_mpio(fapl.get(), comm, MPI_INFO_NULL) >= 0, h5::kNoMpioDriver);
+    const h5::Handle file(H5Fopen(spec.file.c_str(), H5F_ACC_RDONLY, fapl.get()), H5Fclose);
+    check_collective(comm, file.valid(), fmt::format("{}: cannot open as an HDF5 file", spec.file));
 
     const htri_t exists = H5Lexists(file.get(), spec.dataset.c_str(), H5P_DEFAULT);
-    const H5Handle dset(exists > 0 ? H5Dopen2(file.get(), spec.dataset.c_str(), H5P_DEFAULT) : -1, H5Dclose);
-    check_collective(comm, dset.ok(),
+    const h5::Handle dset(exists > 0 ? H5Dopen2(file.get(), spec.dataset.c_str(), H5P_DEFAULT) : -1, H5Dclose);
+    check_collective(comm, dset.valid(),
                      fmt::format("{}: dataset '{}' not found (medium.dataset)", spec.file, spec.dataset));
 
-    const H5Handle type(H5Dget_type(dset.get()), H5Tclose);
+    const h5::Handle type(H5Dget_type(dset.get()), H5Tclose);
     const H5T_class_t cls = H5Tget_class(type.get());
     check_collective(comm, cls == H5T_FLOAT || cls == H5T_INTEGER,
                      fmt::format("{}: dataset '{}' must hold numbers (floating point or integer)",
                                  spec.file, spec.dataset));
 
-    const H5Handle fspace(H5Dget_space(dset.get()), H5Sclose);
+    const h5::Handle fspace(H5Dget_space(dset.get()), H5Sclose);
     const int ndims = H5Sget_simple_extent_ndims(fspace.get());
     hsize_t dims[3] = {0, 0, 0};
     if (ndims == 3) H5Sget_simple_extent_dims(fspace.get(), dims, nullptr);
@@ -121,14 +90,15 @@ void read_hdf5(const MediumSpec& spec, const Decomposition& d, std::vector<doubl
                               static_cast<hsize_t>(b.lo[0])};
     const hsize_t count[3] = {static_cast<hsize_t>(b.size(2)), static_cast<hsize_t>(b.size(1)),
                               static_cast<hsize_t>(b.size(0))};
-    H5Sselect_hyperslab(fspace.get(), H5S_SELECT_SET, start, nullptr, count, nullptr);
-    const H5Handle mspace(H5Screate_simple(3, count, nullptr), H5Sclose);
-    const H5Handle dxpl(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
-    H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE);
+    const herr_t selected = H5Sselect_hyperslab(fspace.get(), H5S_SELECT_SET, start, nullptr, count, nullptr);
+    const h5::Handle mspace(H5Screate_simple(3, count, nullptr), H5Sclose);
+    const h5::Handle dxpl(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
+    const herr_t collective = H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE);
     values.assign(static_cast<size_t>(b.cells()), 0.0);
+    // Every rank takes part in the (collective) read whatever its own set-up gave.
     const herr_t status = H5Dread(dset.get(), H5T_NATIVE_DOUBLE, mspace.get(), fspace.get(), dxpl.get(),
                                   values.data());
-    check_collective(comm, status >= 0,
+    check_collective(comm, status >= 0 && selected >= 0 && collective >= 0,
                      fmt::format("{}: reading dataset '{}' failed", spec.file, spec.dataset));
 }
 
@@ -151,13 +121,15 @@ void read_raw(const MediumSpec& spec, const Decomposition& d, std::vector<double
     MPI_File_set_view(fh, 0, MPI_FLOAT, view, "native", MPI_INFO_NULL);
 
     std::vector<float> buf(static_cast<size_t>(b.cells()));
+    // A box may hold more than 2^31 - 1 cells: one derived element then (mpi_counts.h).
+    const LargeCount whole(b.cells(), MPI_FLOAT);
     MPI_Status st;
-    const int rrc = MPI_File_read_all(fh, buf.data(), static_cast<int>(buf.size()), MPI_FLOAT, &st);
-    int got = 0;
-    MPI_Get_count(&st, MPI_FLOAT, &got);
+    const int rrc = MPI_File_read_all(fh, buf.data(), whole.count(), whole.type(), &st);
+    MPI_Count got = 0;
+    MPI_Get_elements_x(&st, whole.type(), &got);
     MPI_File_close(&fh);
     MPI_Type_free(&view);
-    check_collective(comm, rrc == MPI_SUCCESS && got == static_cast<int>(buf.size()),
+    check_collective(comm, rrc == MPI_SUCCESS && got == static_cast<MPI_Count>(b.cells()),
                      fmt::format("{}: reading the raw density file failed", spec.file));
 
     values.resize(buf.size());
@@ -212,11 +184,12 @@ Medium load_medium(const Scene& scene, const Decomposition& d) {
                                     static_cast<double>(d.local().grown(1).cells()) * 8 / (1 << 30)));
         }
     });
-    if (scene.medium.kind == MediumSpec::Kind::hdf5 || scene.medium.kind == MediumSpec::Kind::raw)
-        read_density(scene.medium, d, m.rho);
-    else
+    if (scene.medium.kind == MediumSpec::Kind::hdf5 || scene.medium.kind == MediumSpec::Kind::raw) {
+        read_density(scene.medium, d, m.rho);  // checked there, naming the file
+    } else {
         fill_procedural_density(scene.medium, d, m.rho);
-    check_density(m.rho, d);
+        check_density(m.rho, d);
+    }
     return m;
 }
 

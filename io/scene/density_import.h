@@ -1,5 +1,6 @@
-// Density from files: an HDF5 dataset of shape [nz][ny][nx] (any floating type), or a raw file
-// of nx*ny*nz little-endian float32 values, x fastest. Each rank reads only its own box.
+// Density from files: an HDF5 dataset of shape [nz][ny][nx] (any floating-point or integer
+// type, converted to double by HDF5), or a raw file of nx*ny*nz little-endian float32 values,
+// x fastest. Each rank reads only its own box.
 // load_medium builds a scene's whole Medium from whichever density source it names.
 #pragma once
 
