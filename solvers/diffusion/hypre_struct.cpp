@@ -1,6 +1,7 @@
 #include "solvers/diffusion/hypre_struct.h"
 
 #include <HYPRE_utilities.h>
+#include <fmt/format.h>
 
 #include "src/core/error.h"
 
@@ -13,6 +14,27 @@ void to_hypre(const Box& b, HYPRE_Int lo[3], HYPRE_Int hi[3]) {
         lo[d] = b.lo[d];
         hi[d] = b.hi[d] - 1;
     }
+}
+
+// hypre's calls return its global error flag, which stays set until cleared: a failure in a
+// rank-local call (Create, Set...) shows in the return of that rank's next collective call.
+// So the collective calls (Assemble, Initialize, Setup, Solve, Matvec, and the reads every rank
+// makes after a solve) are checked, on every rank together; the rank-local ones are not. Every
+// bit but HYPRE_ERROR_CONV is a failure (non-convergence is judged by the caller on the true
+// residual, hypre_solve.cpp).
+HYPRE_Int failure_bits(HYPRE_Int err) { return err & ~HYPRE_Int{HYPRE_ERROR_CONV}; }
+
+std::string describe(HYPRE_Int err, const char* call) {
+    char text[512] = {};
+    HYPRE_DescribeError(err, text);
+    return fmt::format("diffusion: hypre's {} failed (error {}: {})", call, err, text);
+}
+
+// A failure on any rank of comm is an Error on every rank.
+void check_all(MPI_Comm comm, HYPRE_Int err, const char* call) {
+    const bool ok = failure_bits(err) == 0;
+    if (!ok) HYPRE_ClearAllErrors();
+    check_collective(comm, ok, ok ? std::string() : describe(err, call));
 }
 
 // Preconditioner settings: one V-cycle, zero initial guess, symmetric smoothing.
@@ -60,6 +82,29 @@ void configure_smg(HYPRE_StructSolver s, bool as_precond) {
 
 }  // namespace
 
+// The calls of one hypre Struct solver, chosen once (Solver's constructor).
+struct SolverCalls {
+    const char* name;
+    HYPRE_Int (*destroy)(HYPRE_StructSolver);
+    HYPRE_Int (*set_tol)(HYPRE_StructSolver, HYPRE_Real);
+    HYPRE_Int (*set_max_iter)(HYPRE_StructSolver, HYPRE_Int);
+    HYPRE_PtrToStructSolverFcn setup, solve;
+    HYPRE_Int (*iterations)(HYPRE_StructSolver, HYPRE_Int*);
+    HYPRE_Int (*final_residual)(HYPRE_StructSolver, HYPRE_Real*);
+};
+
+namespace {
+constexpr SolverCalls kPcg{"PCG", HYPRE_StructPCGDestroy, HYPRE_StructPCGSetTol, HYPRE_StructPCGSetMaxIter,
+                           HYPRE_StructPCGSetup, HYPRE_StructPCGSolve, HYPRE_StructPCGGetNumIterations,
+                           HYPRE_StructPCGGetFinalRelativeResidualNorm};
+constexpr SolverCalls kPfmg{"PFMG", HYPRE_StructPFMGDestroy, HYPRE_StructPFMGSetTol, HYPRE_StructPFMGSetMaxIter,
+                            HYPRE_StructPFMGSetup, HYPRE_StructPFMGSolve, HYPRE_StructPFMGGetNumIterations,
+                            HYPRE_StructPFMGGetFinalRelativeResidualNorm};
+constexpr SolverCalls kSmg{"SMG", HYPRE_StructSMGDestroy, HYPRE_StructSMGSetTol, HYPRE_StructSMGSetMaxIter,
+                           HYPRE_StructSMGSetup, HYPRE_StructSMGSolve, HYPRE_StructSMGGetNumIterations,
+                           HYPRE_StructSMGGetFinalRelativeResidualNorm};
+}  // namespace
+
 void ensure_initialized() {
     static bool done = false;
     if (!done) {
@@ -78,7 +123,7 @@ Grid::Grid(MPI_Comm comm, const Box& box, const Int3& period) {
     }
     HYPRE_Int per[3] = {period[0], period[1], period[2]};
     if (per[0] > 0 || per[1] > 0 || per[2] > 0) HYPRE_StructGridSetPeriodic(g_, per);
-    HYPRE_StructGridAssemble(g_);
+    check_all(comm, HYPRE_StructGridAssemble(g_), "StructGridAssemble");
 }
 Grid::~Grid() { HYPRE_StructGridDestroy(g_); }
 
@@ -89,10 +134,10 @@ SymmetricStencil7::SymmetricStencil7() {
 }
 SymmetricStencil7::~SymmetricStencil7() { HYPRE_StructStencilDestroy(s_); }
 
-Matrix::Matrix(MPI_Comm comm, const Grid& grid, const SymmetricStencil7& stencil) {
+Matrix::Matrix(MPI_Comm comm, const Grid& grid, const SymmetricStencil7& stencil) : comm_(comm) {
     HYPRE_StructMatrixCreate(comm, grid.get(), stencil.get(), &A_);
     HYPRE_StructMatrixSetSymmetric(A_, 1);
-    HYPRE_StructMatrixInitialize(A_);
+    check_all(comm, HYPRE_StructMatrixInitialize(A_), "StructMatrixInitialize");
 }
 Matrix::~Matrix() { HYPRE_StructMatrixDestroy(A_); }
 
@@ -103,11 +148,11 @@ void Matrix::set_box_values(const Box& box, std::vector<double>& values) {
     HYPRE_Int entries[SymmetricStencil7::kEntries] = {0, 1, 2, 3};
     HYPRE_StructMatrixSetBoxValues(A_, lo, hi, SymmetricStencil7::kEntries, entries, values.data());
 }
-void Matrix::assemble() { HYPRE_StructMatrixAssemble(A_); }
+void Matrix::assemble() { check_all(comm_, HYPRE_StructMatrixAssemble(A_), "StructMatrixAssemble"); }
 
-Vector::Vector(MPI_Comm comm, const Grid& grid) {
+Vector::Vector(MPI_Comm comm, const Grid& grid) : comm_(comm) {
     HYPRE_StructVectorCreate(comm, grid.get(), &v_);
-    HYPRE_StructVectorInitialize(v_);
+    check_all(comm, HYPRE_StructVectorInitialize(v_), "StructVectorInitialize");
     HYPRE_StructVectorSetConstantValues(v_, 0.0);
 }
 Vector::~Vector() { HYPRE_StructVectorDestroy(v_); }
@@ -120,88 +165,75 @@ void Vector::set_box_values(const Box& box, std::vector<double>& values) {
 }
 void Vector::get_box_values(const Box& box, std::vector<double>& values) const {
     values.assign(static_cast<size_t>(box.cells()), 0.0);
-    if (box.empty()) return;
-    HYPRE_Int lo[3], hi[3];
-    to_hypre(box, lo, hi);
-    HYPRE_StructVectorGetBoxValues(v_, lo, hi, values.data());
+    HYPRE_Int err = 0;
+    if (!box.empty()) {
+        HYPRE_Int lo[3], hi[3];
+        to_hypre(box, lo, hi);
+        err = HYPRE_StructVectorGetBoxValues(v_, lo, hi, values.data());
+    }
+    check_all(comm_, err, "StructVectorGetBoxValues");
 }
-void Vector::assemble() { HYPRE_StructVectorAssemble(v_); }
+void Vector::assemble() { check_all(comm_, HYPRE_StructVectorAssemble(v_), "StructVectorAssemble"); }
 
 void matvec(double alpha, const Matrix& A, const Vector& x, double beta, Vector& y) {
-    HYPRE_StructMatrixMatvec(alpha, A.get(), x.get(), beta, y.get());
+    check_all(A.comm(), HYPRE_StructMatrixMatvec(alpha, A.get(), x.get(), beta, y.get()), "StructMatrixMatvec");
 }
 
-Solver::Solver(MPI_Comm comm, const std::string& kind, bool periodic) : kind_(kind) {
-    pcg_ = kind == "pfmg-pcg" || kind == "smg-pcg";
-    pfmg_ = kind == "pfmg" || kind == "pfmg-pcg";
-    if (!pcg_ && kind != "pfmg" && kind != "smg")
-        throw Error("diffusion: unknown hypre solver '" + kind + "'");
-    HYPRE_StructSolver& mg = pcg_ ? precond_ : solver_;
-    if (pfmg_) {
+Solver::Solver(MPI_Comm comm, const std::string& kind, bool periodic) : comm_(comm) {
+    const bool pcg = kind == "pfmg-pcg" || kind == "smg-pcg";
+    const bool pfmg = kind == "pfmg" || kind == "pfmg-pcg";
+    if (!pcg && kind != "pfmg" && kind != "smg") throw Error("diffusion: unknown hypre solver '" + kind + "'");
+    mg_calls_ = pfmg ? &kPfmg : &kSmg;
+    calls_ = pcg ? &kPcg : mg_calls_;
+    HYPRE_StructSolver& mg = pcg ? precond_ : solver_;
+    if (pfmg) {
         HYPRE_StructPFMGCreate(comm, &mg);
-        configure_pfmg(mg, pcg_, periodic);
+        configure_pfmg(mg, pcg, periodic);
     } else {
         HYPRE_StructSMGCreate(comm, &mg);
-        configure_smg(mg, pcg_);
+        configure_smg(mg, pcg);
     }
-    if (pcg_) {
+    if (pcg) {
         HYPRE_StructPCGCreate(comm, &solver_);
         HYPRE_StructPCGSetTwoNorm(solver_, 1);
         HYPRE_StructPCGSetRelChange(solver_, 0);
         HYPRE_StructPCGSetLogging(solver_, 1);
-        if (pfmg_)
-            HYPRE_StructPCGSetPrecond(solver_, HYPRE_StructPFMGSolve, HYPRE_StructPFMGSetup, precond_);
-        else
-            HYPRE_StructPCGSetPrecond(solver_, HYPRE_StructSMGSolve, HYPRE_StructSMGSetup, precond_);
+        HYPRE_StructPCGSetPrecond(solver_, mg_calls_->solve, mg_calls_->setup, precond_);
     }
 }
 
 Solver::~Solver() {
-    if (pcg_) HYPRE_StructPCGDestroy(solver_);
-    HYPRE_StructSolver mg = pcg_ ? precond_ : solver_;
-    if (pfmg_) HYPRE_StructPFMGDestroy(mg); else HYPRE_StructSMGDestroy(mg);
+    calls_->destroy(solver_);
+    if (precond_) mg_calls_->destroy(precond_);
 }
 
-void Solver::set_tolerance(double tol) {
-    if (pcg_) HYPRE_StructPCGSetTol(solver_, tol);
-    else if (pfmg_) HYPRE_StructPFMGSetTol(solver_, tol);
-    else HYPRE_StructSMGSetTol(solver_, tol);
-}
+void Solver::set_tolerance(double tol) { calls_->set_tol(solver_, tol); }
 
-void Solver::set_max_iterations(int n) {
-    if (pcg_) HYPRE_StructPCGSetMaxIter(solver_, n);
-    else if (pfmg_) HYPRE_StructPFMGSetMaxIter(solver_, n);
-    else HYPRE_StructSMGSetMaxIter(solver_, n);
-}
+void Solver::set_max_iterations(int n) { calls_->set_max_iter(solver_, n); }
 
 void Solver::setup(const Matrix& A, const Vector& b, Vector& x) {
-    if (pcg_) HYPRE_StructPCGSetup(solver_, A.get(), b.get(), x.get());
-    else if (pfmg_) HYPRE_StructPFMGSetup(solver_, A.get(), b.get(), x.get());
-    else HYPRE_StructSMGSetup(solver_, A.get(), b.get(), x.get());
+    check_all(comm_, calls_->setup(solver_, A.get(), b.get(), x.get()), "Setup");
 }
 
 void Solver::solve(const Matrix& A, const Vector& b, Vector& x) {
-    if (pcg_) HYPRE_StructPCGSolve(solver_, A.get(), b.get(), x.get());
-    else if (pfmg_) HYPRE_StructPFMGSolve(solver_, A.get(), b.get(), x.get());
-    else HYPRE_StructSMGSolve(solver_, A.get(), b.get(), x.get());
-    HYPRE_ClearAllErrors();  // non-convergence is judged by the caller on the true residual
+    // Only argument and memory errors fail here. Non-convergence and a breakdown (PCG's
+    // generic error on a NaN) leave a residual that the caller checks on the true residual and
+    // reports with its history (hypre_solve.cpp).
+    const HYPRE_Int err = calls_->solve(solver_, A.get(), b.get(), x.get());
+    HYPRE_ClearAllErrors();
+    check_all(comm_, err & (HYPRE_ERROR_MEMORY | HYPRE_ERROR_ARG), calls_->name);
 }
 
 int Solver::iterations() const {
     HYPRE_Int n = 0;
-    if (pcg_) HYPRE_StructPCGGetNumIterations(solver_, &n);
-    else if (pfmg_) HYPRE_StructPFMGGetNumIterations(solver_, &n);
-    else HYPRE_StructSMGGetNumIterations(solver_, &n);
+    check_all(comm_, calls_->iterations(solver_, &n), "GetNumIterations");
     return static_cast<int>(n);
 }
 
 double Solver::final_relative_residual() const {
     HYPRE_Real r = 0;
-    if (pcg_) HYPRE_StructPCGGetFinalRelativeResidualNorm(solver_, &r);
-    else if (pfmg_) HYPRE_StructPFMGGetFinalRelativeResidualNorm(solver_, &r);
-    else HYPRE_StructSMGGetFinalRelativeResidualNorm(solver_, &r);
+    check_all(comm_, calls_->final_residual(solver_, &r), "GetFinalRelativeResidualNorm");
     return static_cast<double>(r);
 }
 
 }  // namespace nimbus::diffusion::hypre
-

@@ -3,7 +3,9 @@
 // PFMG/SMG preconditioner. Life cycle as in the hypre examples: Create, Set, Assemble
 // (collective), Setup (collective), Solve (collective), Destroy (in the destructor).
 //
-// Every constructor is collective over the communicator it is given. A rank may own no box:
+// Every constructor is collective over the communicator it is given. A hypre error (any but
+// non-convergence, which the caller judges on the true residual) throws Error; in a collective
+// call (Assemble, Setup, Solve, Matvec) on every rank. A rank may own no box:
 // it still constructs every object (hypre Struct allows ranks without boxes; SetExtents is
 // simply not called). Boxes are nimbus half-open boxes; the conversion to hypre's inclusive
 // [ilower, iupper] is done here and nowhere else.
@@ -63,8 +65,10 @@ public:
     void set_box_values(const Box& box, std::vector<double>& values);
     void assemble();  // collective
     HYPRE_StructMatrix get() const { return A_; }
+    MPI_Comm comm() const { return comm_; }
 
 private:
+    MPI_Comm comm_;
     HYPRE_StructMatrix A_ = nullptr;
 };
 
@@ -80,8 +84,11 @@ public:
     HYPRE_StructVector get() const { return v_; }
 
 private:
+    MPI_Comm comm_;
     HYPRE_StructVector v_ = nullptr;
 };
+
+struct SolverCalls;  // hypre_struct.cpp
 
 // y = alpha A x + beta y (collective).
 void matvec(double alpha, const Matrix& A, const Vector& x, double beta, Vector& y);
@@ -103,13 +110,13 @@ public:
     void solve(const Matrix& A, const Vector& b, Vector& x);  // collective; x = initial guess
     int iterations() const;
     double final_relative_residual() const;
-    const std::string& kind() const { return kind_; }
 
 private:
-    std::string kind_;
-    bool pcg_ = false, pfmg_ = false;
-    HYPRE_StructSolver solver_ = nullptr;   // PFMG, SMG or PCG
-    HYPRE_StructSolver precond_ = nullptr;  // PFMG or SMG inside PCG
+    MPI_Comm comm_;
+    const SolverCalls* calls_ = nullptr;     // solver_'s
+    const SolverCalls* mg_calls_ = nullptr;  // the multigrid's: solver_'s or precond_'s
+    HYPRE_StructSolver solver_ = nullptr;    // PFMG, SMG or PCG
+    HYPRE_StructSolver precond_ = nullptr;   // PFMG or SMG inside PCG
 };
 
 }  // namespace nimbus::diffusion::hypre

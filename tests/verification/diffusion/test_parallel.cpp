@@ -6,6 +6,7 @@
 // PETSc options are one collective error naming the option, and the solve region is the
 // bounding box of the full cells plus the margin (item 4).
 #include <gtest/gtest.h>
+#include <_hypre_utilities.h>  // hypre_error_handler: flags an error as hypre does inside
 
 #include <algorithm>
 #include <array>
@@ -14,6 +15,7 @@
 #include "tests/verification/diffusion/diffusion_test_util.h"
 #include "solvers/diffusion/diffusion.h"
 #include "src/core/error.h"
+#include "solvers/diffusion/hypre_struct.h"
 #include "src/scene/medium.h"
 #include "tests/support/expect_collective_error.h"
 #include "tests/support/mpi_test.h"
@@ -203,6 +205,25 @@ TEST(DiffusionParallel, BadPetscOptionsAreOneCollectiveErrorNamingTheOption) {
     typo->check(scene, d, m);
     test::expect_collective_error([&] { test::run_model(*typo, d, kH, kBand, cumulus, kSun, report); },
                                   "model.diffusion.petsc_options: PETSc did not use '-diffusion_pc_typo jacobi'");
+}
+
+// A hypre failure on one rank (here a memory error flagged on the last rank, as hypre's
+// allocator flags one) is one Error on every rank at the next collective hypre call, naming
+// the call and hypre's description; the flag is cleared, so the next solve works.
+TEST(DiffusionParallel, HypreFailureOnOneRankIsOneCollectiveError) {
+    int rank = 0, size = 1;
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    const Box box{{0, 0, 4 * rank}, {4, 4, 4 * rank + 4}};
+    diffusion::hypre::Grid grid(MPI_COMM_WORLD, box, {0, 0, 0});
+    if (rank == size - 1) hypre_error_handler(__FILE__, __LINE__, HYPRE_ERROR_MEMORY, nullptr);
+    test::expect_collective_error([&] { diffusion::hypre::Vector v(MPI_COMM_WORLD, grid); },
+                                  "diffusion: hypre's StructVectorInitialize failed (error 2: [Memory error] )");
+    Report report;
+    std::unique_ptr<Decomposition> d;
+    const DiffuseSolution u = solve_on(MPI_COMM_WORLD, "pfmg-pcg", 1e-8, report, d);
+    const std::vector<double> local = u.fluence[0].owned_values();
+    EXPECT_GT(test::global_max(*std::max_element(local.begin(), local.end()), MPI_COMM_WORLD), 0.0);
 }
 
 // Too few iterations: an Error on every rank whose message gives the residual history.
