@@ -142,6 +142,10 @@ void TableReader::fail(const std::string& key, const std::string& what) const {
 
 double TableReader::number(const toml::value& v, const std::string& key,
                            const std::string& expected) const {
+    // TOML has nan and inf literals; no scene number means either, and a NaN would slip
+    // through every range check written as `x < lo || x > hi`.
+    if (v.is_floating() && !std::isfinite(v.as_floating()))
+        fail(key, fmt::format("= {} must be a finite number", v.as_floating()));
     if (v.is_floating()) return v.as_floating();
     if (v.is_integer()) return static_cast<double>(v.as_integer());
     fail(key, fmt::format("must be {} {}", expected, found(v)));

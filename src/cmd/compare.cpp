@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <nlohmann/json.hpp>
 
 #include "io/output/hdf5_reader.h"
@@ -29,30 +30,27 @@
 namespace nimbus::cmd {
 namespace {
 
-// The bands in the order of the reference run's scene (its /scene attribute), as the user wrote
-// them; names it does not list (or a file without the attribute) keep their place at the end.
-void sort_in_scene_order(const std::string& file, std::vector<std::string>& bands) {
-    std::vector<std::string> order;
+// The scene the run that wrote `file` stored (its /scene attribute), read for its grid and bands
+// only: the medium is read as a box, so an imported density need not still be where the run
+// found it. Empty when the file has no readable scene (written by another program).
+std::optional<Scene> stored_scene(const std::string& file) {
     try {
-        for (const BandOptics& b : load_scene_string(read_string_attribute(file, "/scene", "toml"), file).bands)
-            order.push_back(b.name);
+        return load_scene_string(read_string_attribute(file, "/scene", "toml"), file, {"medium.kind=\"box\""});
     } catch (const Error&) {
-        return;
+        return std::nullopt;
     }
+}
+
+// The bands in the order of the reference run's scene, as the user wrote them; names it does
+// not list (or all, without a scene) keep their place at the end.
+void sort_in_scene_order(const std::optional<Scene>& scene, std::vector<std::string>& bands) {
+    std::vector<std::string> order;
+    if (scene)
+        for (const BandOptics& b : scene->bands) order.push_back(b.name);
     const auto rank = [&](const std::string& name) {
         return std::find(order.begin(), order.end(), name) - order.begin();
     };
     std::stable_sort(bands.begin(), bands.end(), [&](const std::string& x, const std::string& y) { return rank(x) < rank(y); });
-}
-
-// The cell edge in metres of the run that wrote `file` (its /scene attribute); 0 when the file
-// has no readable scene (written by another program).
-double cell_size_m(const std::string& file) {
-    try {
-        return load_scene_string(read_string_attribute(file, "/scene", "toml"), file).grid.h();
-    } catch (const Error&) {
-        return 0.0;
-    }
 }
 
 // The per-band scalar fields compare can assess (flux_diffuse is a vector field).
@@ -85,7 +83,8 @@ nlohmann::json compare_runs(const CompareArgs& args) {
                                         "(sun.enabled = true)", f, field));
     std::vector<std::string> bands = list_group(args.b, field);  // alphabetical
     if (bands.empty()) throw Error(fmt::format("'{}' has no {} datasets", args.b, field));
-    sort_in_scene_order(args.b, bands);
+    const std::optional<Scene> scene_a = stored_scene(args.a), scene_b = stored_scene(args.b);
+    sort_in_scene_order(scene_b, bands);
     const FieldData density = read_field(args.b, "fields/density");
     nlohmann::json out = {{"a", args.a}, {"b", args.b}, {"field", args.field}, {"bands", nlohmann::json::array()}};
     // Comparing runs of different media is almost always a mistake: say so, but go on.
@@ -97,10 +96,11 @@ nlohmann::json compare_runs(const CompareArgs& args) {
     const double density_diff = max_rel_difference(density_a.values, density.values);
     out["density_max_rel_diff"] = density_diff;
     // The same densities on cells of another size are another medium (other optical depths).
-    const double h_a = cell_size_m(args.a), h_b = cell_size_m(args.b);
+    const double h_a = scene_a ? scene_a->grid.h() : 0.0, h_b = scene_b ? scene_b->grid.h() : 0.0;
     const bool same_cells = !(h_a > 0 && h_b > 0) || std::abs(h_a - h_b) <= kSameMediumTolerance * h_b;
     if (h_a > 0) out["cell_size_m_a"] = h_a;
     if (h_b > 0) out["cell_size_m_b"] = h_b;
+    out["same_cells"] = same_cells;
     out["same_medium"] = density_diff <= kSameMediumTolerance && same_cells;
     for (const std::string& band : bands) {
         const std::string path = field + "/" + band;
@@ -222,9 +222,7 @@ void add_compare_command(CLI::App& app) {
             if (rank == 0) result = compare_runs(*args);
         });
         if (rank != 0) return;
-        if (result.contains("cell_size_m_a") && result.contains("cell_size_m_b") &&
-            std::abs(result["cell_size_m_a"].get<double>() - result["cell_size_m_b"].get<double>()) >
-                kSameMediumTolerance * result["cell_size_m_b"].get<double>())
+        if (!result["same_cells"].get<bool>())
             log::warn("the cells of {} and {} differ in size ({:.6g} m against {:.6g} m): these are runs of different "
                       "media, and the errors compare different problems",
                       args->a, args->b, result["cell_size_m_a"].get<double>(), result["cell_size_m_b"].get<double>());

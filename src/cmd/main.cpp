@@ -1,9 +1,10 @@
 // nimbus: light transport in participating media on MPI ranks.
 //   mpiexec -n 2 nimbus run [SCENE] [--set key=value ...] [--out DIR]
-//   nimbus info SCENE
+//   nimbus info [SCENE] [--set key=value ...]
 //   nimbus compare A.h5 B.h5 [--json]
 // Exit status: 0 on success (and for --help, --version), 1 on a usage error or bad input (one
-// "nimbus: error:" line from rank 0), 2 when a rank fails on its own (internal error).
+// "nimbus: error:" line from rank 0) and when memory runs out (on one rank: MPI_Abort with 1),
+// 2 when a rank fails on its own (internal error).
 #include <CLI/CLI.hpp>
 #include <mpi.h>
 

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 
 #include "src/core/error.h"
 
@@ -10,13 +11,13 @@ namespace nimbus {
 
 void MonteCarloOptions::validate() const {
     if (photons < 1) throw Error(fmt::format("model.montecarlo.photons = {} must be >= 1", photons));
-    if (time_budget < 0) throw Error("model.montecarlo.time_budget must be >= 0 seconds");
-    if (target_rel_error < 0 || target_rel_error >= 1)
+    if (!(time_budget >= 0 && std::isfinite(time_budget))) throw Error("model.montecarlo.time_budget must be >= 0 seconds");
+    if (!(target_rel_error >= 0 && target_rel_error < 1))
         throw Error("model.montecarlo.target_rel_error must be in [0, 1)");
     if (batches < 2 || batches > 4096) throw Error("model.montecarlo.batches must be in [2, 4096]");
-    if (roulette_weight <= 0 || roulette_weight >= 1)
+    if (!(roulette_weight > 0 && roulette_weight < 1))
         throw Error("model.montecarlo.roulette_weight must be in (0, 1)");
-    if (max_replicated_memory_gb <= 0) throw Error("model.montecarlo.max_replicated_memory_gb must be > 0");
+    if (!(max_replicated_memory_gb > 0 && std::isfinite(max_replicated_memory_gb))) throw Error("model.montecarlo.max_replicated_memory_gb must be > 0");
     if (samples_per_pixel < 1) throw Error("model.montecarlo.samples_per_pixel must be >= 1");
 }
 
@@ -25,14 +26,14 @@ void DiffusionOptions::validate() const {
                        solver == "smg-pcg" || solver == "petsc";
     if (!known)
         throw Error(fmt::format("model.diffusion.solver = '{}': allowed are pfmg, smg, pfmg-pcg, smg-pcg, petsc", solver));
-    if (tolerance <= 0 || tolerance >= 1) throw Error("model.diffusion.tolerance must be in (0, 1)");
+    if (!(tolerance > 0 && tolerance < 1)) throw Error("model.diffusion.tolerance must be in (0, 1)");
     if (max_iterations < 1) throw Error("model.diffusion.max_iterations must be >= 1");
     if (margin < 0) throw Error("model.diffusion.margin must be >= 0");
-    if (max_transport_length < 0) throw Error("model.diffusion.max_transport_length must be >= 0 (0 = solve region size)");
+    if (!(max_transport_length >= 0 && std::isfinite(max_transport_length))) throw Error("model.diffusion.max_transport_length must be >= 0 (0 = half the solve region's smallest extent)");
     if (flux_limiter != "none" && flux_limiter != "levermore-pomraning")
         throw Error(fmt::format("model.diffusion.flux_limiter = '{}': allowed are none, levermore-pomraning", flux_limiter));
     if (limiter_iterations < 1) throw Error("model.diffusion.limiter_iterations must be >= 1");
-    if (limiter_tolerance <= 0 || limiter_tolerance >= 1) throw Error("model.diffusion.limiter_tolerance must be in (0, 1)");
+    if (!(limiter_tolerance > 0 && limiter_tolerance < 1)) throw Error("model.diffusion.limiter_tolerance must be in (0, 1)");
     if (!petsc_options.empty() && solver != "petsc")
         throw Error("model.diffusion.petsc_options is read only with solver = \"petsc\"");
 }
@@ -54,7 +55,7 @@ void DomOptions::validate() const {
         throw Error(fmt::format("model.dom.scheme = '{}': allowed are step, diamond", scheme));
     if (iteration != "source" && iteration != "dsa" && iteration != "gmres" && iteration != "gmres-plain")
         throw Error(fmt::format("model.dom.iteration = '{}': allowed are source, dsa, gmres, gmres-plain", iteration));
-    if (tolerance <= 0 || tolerance >= 1) throw Error("model.dom.tolerance must be in (0, 1)");
+    if (!(tolerance > 0 && tolerance < 1)) throw Error("model.dom.tolerance must be in (0, 1)");
     if (max_iterations < 1) throw Error("model.dom.max_iterations must be >= 1");
     if (tile_rows < 1) throw Error("model.dom.tile_rows must be >= 1");
     if (octant_overlap != 1 && octant_overlap != 2 && octant_overlap != 8)
@@ -84,14 +85,14 @@ void LpmOptions::validate() const {
     if (solution_bins != 1 && solution_bins != 4)
         throw Error("model.lpm.solution_bins must be 1 (fluence) or 4 (fluence and flux)");
     if (iterations < 1) throw Error("model.lpm.iterations must be >= 1");
-    if (epsilon < 0 || epsilon >= 1) throw Error("model.lpm.epsilon must be in [0, 1)");
+    if (!(epsilon >= 0 && epsilon < 1)) throw Error("model.lpm.epsilon must be in [0, 1)");
     if (tail != "none" && tail != "geometric" && tail != "diffusion")
         throw Error("model.lpm.tail must be none, geometric or diffusion");
 }
 
 void PsfOptions::validate() const {
     if (levels < 0) throw Error("model.psf.levels must be >= 0 (0 = automatic)");
-    if (step_growth < 0) throw Error("model.psf.step_growth must be >= 0");
+    if (!(step_growth >= 0 && std::isfinite(step_growth))) throw Error("model.psf.step_growth must be >= 0");
 }
 
 }  // namespace nimbus

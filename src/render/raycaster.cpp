@@ -122,6 +122,7 @@ struct RaySetup {
             return false;
         r.t_enter = std::max(tg0, 0.0);
         const double chord = tg1 - r.t_enter;
+        if (!(chord > 0.0)) return false;  // grazes an edge or a corner: no step (ds would be 0)
         r.n = std::max(1, static_cast<int>(std::ceil(chord / ds_nominal)));
         r.ds = chord / r.n;
         for (int a = 0; a < 3; ++a)

@@ -40,9 +40,16 @@ std::vector<std::array<double, 2>> view_depth_at_entry(const std::vector<PieceDe
     }
     std::vector<int> recv_counts(static_cast<size_t>(nranks)), recv_displs(static_cast<size_t>(nranks), 0);
     MPI_Alltoall(send_counts.data(), 1, MPI_INT, recv_counts.data(), 1, MPI_INT, comm);
-    for (int p = 1; p < nranks; ++p)
-        recv_displs[static_cast<size_t>(p)] = recv_displs[static_cast<size_t>(p - 1)] + recv_counts[static_cast<size_t>(p - 1)];
-    const size_t nrecv = static_cast<size_t>(recv_displs.back() + recv_counts.back());
+    // What a row owner receives from all ranks must fit MPI's int displacements too (the send
+    // side's bound; composite.cpp checks its fragments alike).
+    long long total = 0;
+    for (int p = 0; p < nranks; ++p) {
+        recv_displs[static_cast<size_t>(p)] = static_cast<int>(std::min<long long>(total, INT_MAX));
+        total += recv_counts[static_cast<size_t>(p)];
+    }
+    check_collective(comm, total <= static_cast<long long>(INT_MAX / sizeof(PieceDepth)),
+                     "render: too many view-ray pieces for one MPI message; use a smaller image");
+    const auto nrecv = static_cast<size_t>(total);
     std::vector<PieceDepth> recv(nrecv);
     MPI_Datatype rec;
     MPI_Type_contiguous(static_cast<int>(sizeof(PieceDepth)), MPI_BYTE, &rec);

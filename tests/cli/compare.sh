@@ -98,7 +98,8 @@ check "zero reference: no inf or nan" bash -c '! echo "$1" | grep -Eqiw "inf|nan
 # JSON: each comparison to a file, then checked in one Python run.
 json() {  # json <name> compare-args...
   local name=$1; shift
-  nim compare "$@" --json > "$tmp/$name.json" 2> "$tmp/$name.err" || echo "FAIL: compare --json $name exited non-zero"
+  if nim compare "$@" --json > "$tmp/$name.json" 2> "$tmp/$name.err"; then pass=$((pass + 1))
+  else fail=$((fail + 1)); echo "FAIL: compare --json $name exited non-zero"; fi
 }
 json ab "$A" "$B"
 json aa "$A" "$A" --image-a "$IA" --image-b "$IA"

@@ -36,5 +36,11 @@ expect "study: scenes/default.toml x: nimbus: error: .*model.name = \"nosuch\" i
   /usr/bin/python3 jobs/study.py --scenes scenes/default.toml --model x=nosuch --ranks 1 \
   --reference-photons 1000000000 --nimbus "$build/bin/nimbus" --out "$tmp/study"
 if [ -e "$tmp/study" ]; then fail=$((fail + 1)); echo "FAIL: study.py wrote $tmp/study before refusing"; else pass=$((pass + 1)); fi
+# Two scenes of one file name would share OUT/<name> (the second overwriting the first, or
+# compared against the first's reference with --reuse-reference).
+mkdir -p "$tmp/other" && cp "$src/scenes/slab.toml" "$tmp/other/default.toml"
+expect "study: scenes scenes/default.toml, $tmp/other/default.toml would share the folder $tmp/study/default: rename one" \
+  /usr/bin/python3 jobs/study.py --scenes scenes/default.toml "$tmp/other/default.toml" --model x=single --ranks 1 \
+  --nimbus "$build/bin/nimbus" --out "$tmp/study"
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]

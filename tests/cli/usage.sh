@@ -92,6 +92,15 @@ if run_small a && run_small a2 && run_small b --set medium.density=2.0; then
   else
     fail=$((fail + 1)); echo "FAIL: the small run with other cells did not run"
   fi
+  # The cell size is read from /scene also when the reference's imported density is gone (the
+  # stored scene names a file that no longer exists; compare reads only its grid and bands).
+  /usr/bin/python3 -c 'import struct, sys; open(sys.argv[1], "wb").write(struct.pack("<1152f", *([0.5] * 1152)))' "$tmp/d.raw"
+  if run_small d --set 'medium.kind="raw"' --set "medium.file=\"$tmp/d.raw\"" --set grid.cell_size=30; then
+    rm "$tmp/d.raw"
+    check "compare: cell size of a run whose density file is gone" 0 "the cells of .* differ in size (25 m against 30 m)" compare "$a" "$tmp/d/nimbus.h5"
+  else
+    fail=$((fail + 1)); echo "FAIL: the small run of an imported density did not run"
+  fi
   # A reference whose few paths left cells unreached: RMS z is over the others, and says so.
   if run_small few --set model.montecarlo.photons=300 --set model.montecarlo.batches=4; then
     check "compare: RMS z over the reached cells" 0 "r: RMS z over [0-9]* of the [0-9]* cells; the reference's standard error is 0 on the others" compare "$a" "$tmp/few/nimbus.h5"

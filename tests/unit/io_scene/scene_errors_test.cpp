@@ -5,10 +5,12 @@
 
 #include <algorithm>
 #include <initializer_list>
+#include <limits>
 #include <string>
 
 #include "io/scene/scene_toml.h"
 #include "src/core/error.h"
+#include "src/model/options.h"
 
 namespace nimbus {
 namespace {
@@ -269,6 +271,45 @@ TEST(SceneErrors, OtherRanges) {
                  {"has 9.22e+18 cells; at most 2^50"});
     expect_error(edit("density = 1.0", "density = 1e308"), "density = 1e308",
                  {"medium.density = 1e+308 is beyond single precision"});
+}
+
+// TOML's nan and inf literals are numbers to toml11; a NaN passed every range check written
+// as `x < lo || x > hi` (model.dom.tolerance = nan ran, max_replicated_memory_gb = nan turned
+// the memory guard off). The reader refuses both, anywhere.
+TEST(SceneErrors, NonFiniteNumbers) {
+    expect_error(edit("", "[model.dom]\ntolerance = nan"), "tolerance = nan",
+                 {"model.dom.tolerance = nan must be a finite number"});
+    expect_error(edit("", "[model.montecarlo]\nmax_replicated_memory_gb = inf"), "max_replicated_memory_gb",
+                 {"model.montecarlo.max_replicated_memory_gb = inf must be a finite number"});
+    expect_error(edit("albedo = 0.9", "albedo = -nan"), "albedo = -nan", {"optics[0].albedo", "must be a finite number"});
+    expect_error(edit("", "[sun]\nirradiance = [inf]"), "irradiance", {"sun.irradiance", "must be a finite number"});
+    expect_error(edit("cell_size = 1.0", "cell_size = -inf"), "cell_size = -inf", {"grid.cell_size = -inf must be a finite number"});
+}
+
+// The options' own checks hold for values that bypass the reader (programs building options).
+TEST(SceneErrors, OptionChecksRefuseNaN) {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    MonteCarloOptions mc;
+    mc.max_replicated_memory_gb = nan;
+    EXPECT_THROW(mc.validate(), Error);
+    mc = {};
+    mc.time_budget = nan;
+    EXPECT_THROW(mc.validate(), Error);
+    DiffusionOptions df;
+    df.tolerance = nan;
+    EXPECT_THROW(df.validate(), Error);
+    df = {};
+    df.max_transport_length = std::numeric_limits<double>::infinity();
+    EXPECT_THROW(df.validate(), Error);
+    DomOptions dom;
+    dom.tolerance = nan;
+    EXPECT_THROW(dom.validate(), Error);
+    LpmOptions lpm;
+    lpm.epsilon = nan;
+    EXPECT_THROW(lpm.validate(), Error);
+    PsfOptions psf;
+    psf.step_growth = nan;
+    EXPECT_THROW(psf.validate(), Error);
 }
 
 TEST(SceneErrors, NoOpticsAndMissingFile) {
