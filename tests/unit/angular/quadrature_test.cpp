@@ -273,12 +273,15 @@ TEST(CubeFaceBins, ExactSolidAnglesSumToFourPi) {
     EXPECT_NEAR(weight_sum(q), 4 * kPi, 1e-12);
     expect_unit_positive_off_planes(q);
     // Bin centred at (1, -0.75, 0.25) on the +x face: [-1,-0.5] x [0,0.5].
+    int found = 0;
     for (int n = 0; n < q.size(); ++n) {
         const Vec3 c = q.dir[n] / std::abs(q.dir[n].x);
         if (q.dir[n].x > 0 && std::abs(c.y + 0.75) < 1e-12 && std::abs(c.z - 0.25) < 1e-12) {
             EXPECT_NEAR(q.weight[n], numeric_bin_solid_angle(-1, -0.5, 0, 0.5), 1e-14);
+            ++found;
         }
     }
+    EXPECT_EQ(found, 1);  // the bin exists once: the check above ran
     for (int E : {2, 4, 6, 10}) {
         const Quadrature qe = cube_face_bins(E);
         EXPECT_NEAR(weight_sum(qe), 4 * kPi, 1e-12) << E;

@@ -59,7 +59,9 @@ TEST(LpmAngular, IsotropicFormFactorsConserveEnergyExactly) {
 }
 
 // Rows sum to 1 (energy) and the mean scattering cosine Σ_m P^{n,m} ω_n·ω̄_m approaches g as
-// the coarse bins are refined (it is exactly g only for infinitely fine bins).
+// the coarse bins are refined (it is exactly g only for infinitely fine bins): its worst error
+// over the map bins falls at least 3x from k 1 to 3 and is below 0.02 at k 9 (measured 0.19,
+// 0.024, 0.0057 at g 0.5; 0.40, 0.050, 0.011 at 0.85; 0.47, 0.069, 0.012 at 0.95).
 TEST(LpmAngular, HenyeyGreensteinFormFactors) {
     for (double g : {0.5, 0.85, 0.95}) {
         double err_prev = 1.0;
@@ -85,7 +87,8 @@ TEST(LpmAngular, HenyeyGreensteinFormFactors) {
                 worst_g = std::max(worst_g, std::abs(mu - g));
             }
             EXPECT_LT(worst_row, 1e-14);
-            EXPECT_LT(worst_g, err_prev + 1e-12) << "g " << g << " k " << k;
+            EXPECT_LT(worst_g, k == 3 ? err_prev / 3 : err_prev + 1e-12) << "g " << g << " k " << k;
+            if (k == 9) EXPECT_LT(worst_g, 0.02) << "g " << g;
             err_prev = worst_g;
             if (test::world_rank() == 0) std::printf("    g %.2f  k %d: max |mean cosine - g| over map bins %.4f\n", g, k, worst_g);
         }
@@ -102,7 +105,9 @@ TEST(LpmAngular, BeamFactorsSumToOne) {
         for (int n = 0; n < a.map_bins(); ++n) mean += a.mean_direction(n) * (b[static_cast<size_t>(a.coarse_of(n))] * a.solid_angle(n) / a.coarse_solid_angle(a.coarse_of(n)));
         for (double v : b) sum += v;
         EXPECT_NEAR(sum, 1.0, 1e-14);
-        EXPECT_NEAR(dot(mean, w), g, 0.05);  // first moment ≈ g w (k = 5: 150 coarse bins)
+        // First moment ≈ g w (k = 5: 150 coarse bins): measured 0.8338 at g 0.85; at g 0 the
+        // factors are the bins' solid angles and the moment cancels to round-off.
+        EXPECT_NEAR(dot(mean, w), g, g == 0.0 ? 1e-12 : 0.03);
     }
 }
 

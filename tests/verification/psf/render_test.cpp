@@ -5,8 +5,9 @@
 //    ray: the image on the world communicator (pieces marched by 2 ranks, depths from the
 //    prepass, held values carried by the compositor) equals the one on MPI_COMM_SELF to 1e-5.
 //  * The psf model on a procedural cumulus (sun + sky): world equals self to 1e-5; its image is
-//    brighter than single scattering alone; sparse sampling (step_growth 1) stays within 3% of
-//    sampling every step in the mean.
+//    brighter than single scattering alone; held samples converge to sampling every step in
+//    the mean: step_growth 0.25 within 5% of it (measured 4%), closer than the default 1 (20%
+//    low on this small cloud; measured multiple scattering adds 35.2%, 42.3%, 44.1% of single).
 #include <gtest/gtest.h>
 #include <mpi.h>
 
