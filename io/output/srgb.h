@@ -21,9 +21,4 @@ inline std::uint8_t srgb8(double v) {
     return static_cast<std::uint8_t>(std::lround(255.0 * srgb_encode(v)));
 }
 
-inline std::uint8_t linear8(double v) {
-    if (!(v > 0.0)) return 0;
-    return static_cast<std::uint8_t>(std::lround(255.0 * std::min(v, 1.0)));
-}
-
 }  // namespace nimbus

@@ -1,7 +1,6 @@
 #include "solvers/light/exact_chain.h"
 
 #include <cmath>
-#include <limits>
 #include <span>
 
 #include "solvers/sweep/chain.h"

@@ -25,7 +25,6 @@ struct Stencil {
     struct Tap { Int3 off; double weight; };
     std::vector<Piece> pieces;
     std::array<Tap, 4> taps;
-    int axis_m = 2;
 };
 
 // m: the axis whose upwind layer the segment starts from. Normally the dominant axis of w
@@ -33,7 +32,6 @@ struct Stencil {
 // away along x/y (f > 1), which periodic wrapping makes available.
 Stencil make_stencil(const Vec3& w, double h, int m) {
     Stencil st;
-    st.axis_m = m;
     const double wm = std::abs(w[m]);
     const double t = h / wm;  // segment length from the upwind plane to the centre
     // Position relative to the centre, in cells: x(u) = (u - 1) * w / |w_m| for u in [0, 1];

@@ -26,11 +26,6 @@
 
 namespace nimbus {
 
-// Collective over d.comm(). Requires slabs along z (process grid 1 x 1 x P). With periodic x/y
-// the segment always starts from the upwind z layer (any non-horizontal light). m.rho must have its ghost
-// layer exchanged. Times "light" (and "light/sweep") into report.
-// method exact: long characteristics instead (see LightSpec; exact_chain.h); any decomposition;
-// slabs along z pipeline the rays down the chain, other process grids replicate the density.
 // What compute_light_transport needs of the decomposition for `method` (sweep: slabs along z);
 // throws Error on every rank alike. Run also before the costly phases (pipeline, nimbus info).
 void check_light_method(const Decomposition& d, LightSpec::Method method);
@@ -47,6 +42,11 @@ inline constexpr double kMaxLightWraps = 1000.0;
 // pre-flight and `nimbus info`.
 void check_lights_leave(const Decomposition& d, const std::vector<DirectionalLight>& lights);
 
+// Collective over d.comm(). m.rho must have its ghost layer exchanged. Times "light" into
+// report. method sweep: requires slabs along z (process grid 1 x 1 x P); with periodic x/y the
+// segment always starts from the upwind z layer (any non-horizontal light). method exact: long
+// characteristics instead (see LightSpec; exact_chain.h); any decomposition; slabs along z
+// pipeline the rays down the chain, other process grids replicate the density.
 LightTransport compute_light_transport(const Decomposition& d, const Medium& m,
                                        const std::vector<DirectionalLight>& lights, Report& report,
                                        const sweep::SweepOptions& opt = {},

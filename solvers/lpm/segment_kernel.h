@@ -68,14 +68,6 @@ inline SegmentWeights segment_weights(double tau) {
     return {e, f1, f2};
 }
 
-// Advances L over one segment and returns ∫ L ds / s (the path-averaged radiance).
-inline double propagate_segment(double& L, double kappa, double u, double s) {
-    const SegmentWeights w = segment_weights(kappa * s);
-    const double mean = L * w.f1 + u * s * w.f2;
-    L = L * w.e + u * s * w.f1;
-    return mean;
-}
-
 }  // namespace nimbus::lpm
 
 namespace nimbus::lpm {

@@ -90,7 +90,6 @@ public:
     }
 
     double g() const { return g_; }
-    double alpha_c() const { return alpha_c_; }
     static double sigma(double l) { return l < 1e-8 ? 1.0 : std::sqrt(l / -std::expm1(-l)); }
     double normalization(double l) const { return interp(norm_, l); }
     // P_MS(l, θ) (1/sr).

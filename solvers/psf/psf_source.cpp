@@ -59,7 +59,6 @@ PsfSource::PsfSource(const SolveContext& ctx, const PsfOptions& opt)
     // light pass needs slabs" does not blame the user's light pass (which may be exact).
     check_decomposition(d);
     const int nb = m.nbands(), nl = static_cast<int>(lights_.size());
-    diagonal_ = norm(m.grid.extent());
     h_ = m.grid.h;
     // Bands: optics and light-volume groups (bands sharing sigma_t share T).
     std::vector<double> group_sigma;

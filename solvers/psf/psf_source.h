@@ -69,7 +69,6 @@ public:
     void fluence(const Medium& m, const Decomposition& d, std::vector<Field<double>>& out);
 
     const LightPyramid& pyramid() const { return pyramid_; }
-    const std::vector<BandPsf>& bands() const { return bands_; }
 
     // [T_l]_w for component c (= light * groups + group) at x; w in metres. Needs prepare().
     double lookup(const Vec3& x, double w, int c) const;
@@ -84,7 +83,6 @@ private:
     std::vector<double> group_sigma_;  // sigma_t per light-volume group
     int ngroups_ = 1;
     double step_growth_ = 1.0;
-    double diagonal_ = 0.0;
     double h_ = 1.0;  // cell edge: the finest sample spacing (x step_growth)
     LightPyramid pyramid_;
     PyramidLevel depth_;  // level-0 layout, components [tau_rho_l, s2_l] per light

@@ -2,7 +2,7 @@
 
 #include "src/core/bcast.h"
 
-#include <vector>
+#include <cstdint>
 
 namespace nimbus {
 

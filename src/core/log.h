@@ -17,7 +17,5 @@ template <class... Args>
 void warn(spdlog::format_string_t<Args...> f, Args&&... a) { spdlog::warn(f, std::forward<Args>(a)...); }
 template <class... Args>
 void debug(spdlog::format_string_t<Args...> f, Args&&... a) { spdlog::debug(f, std::forward<Args>(a)...); }
-template <class... Args>
-void error(spdlog::format_string_t<Args...> f, Args&&... a) { spdlog::error(f, std::forward<Args>(a)...); }
 
 }  // namespace nimbus::log

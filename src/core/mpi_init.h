@@ -15,7 +15,7 @@
 
 namespace nimbus {
 
-// The fcoll component nimbus selects when the user did not choose one ("" if not Open MPI).
+// The fcoll component nimbus selects (Open MPI only) when the user did not choose one.
 inline constexpr const char* kDefaultFcoll = "dynamic_gen2";
 
 // Applies the settings above (Open MPI only; never overrides the user's) and calls MPI_Init.

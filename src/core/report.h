@@ -5,7 +5,6 @@
 
 #include <mpi.h>
 
-#include <map>
 #include <string>
 #include <vector>
 
@@ -20,7 +19,6 @@ public:
     // Free-form values a phase reports: iterations, residual history, problem size, ...
     nlohmann::json& values() { return values_; }
     const nlohmann::json& values() const { return values_; }
-    const std::vector<std::pair<std::string, double>>& times() const { return times_; }
     double time(const std::string& name) const;
 
     // Collective: max over ranks of every phase time, peak memory of every rank, and rank 0's

@@ -18,7 +18,6 @@
 #include "solvers/registry.h"
 #include "src/core/error.h"
 #include "src/core/log.h"
-#include "src/render/ray_box.h"
 #include "src/render/raycaster.h"
 #include "src/scene/emission.h"
 

@@ -80,9 +80,7 @@ inline bool step_in(const RaySteps& r, const MarchView& v, int m, const Box& cel
     return true;
 }
 
-// Integrates steps [m_begin, m_end) (all owned by this rank). C, T: nbands values each,
-// in/out (start with C = 0, T = 1). NB > 0 fixes the band count at compile time, NB = 0 reads
-// v.nbands (at most kMaxBands). Returns the number of steps sampled.
+// The most bands march_steps integrates with a run-time band count (NB = 0).
 inline constexpr int kMaxBands = 16;
 
 // Trilinear interpolation of the nc values of the 8 cells whose lowest corner is p, weights
@@ -176,6 +174,9 @@ long for_each_sample(const MarchView& v, const RaySteps& r, int m_begin, int m_e
     return samples;
 }
 
+// Integrates steps [m_begin, m_end) (all owned by this rank). C, T: nbands values each,
+// in/out (start with C = 0, T = 1). NB > 0 fixes the band count at compile time, NB = 0 reads
+// v.nbands (at most kMaxBands). Returns the number of steps sampled.
 template <int NB, bool kAttenuate>
 long march_steps(const MarchView& v, const RaySteps& r, int m_begin, int m_end, double eps,
                  double* C, double* T) {

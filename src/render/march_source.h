@@ -35,7 +35,8 @@ inline int sample_level(double spacing, double ds) {
     return std::min(20, std::ilogb(r));
 }
 
-// View depths over steps [m_begin, m_end) (the same visits and sums as march_steps_source):
+// View depths over steps [m_begin, m_end) (the same visits and sums as march_steps_source,
+// without its early termination: behind that point the pieces weigh less than eps):
 // tau += rho ds and s += ds on every step with rho > 0.
 // NB as in march_steps_source (the same trilinear arithmetic, hence the same sums).
 template <int NB>
