@@ -19,3 +19,15 @@ need_binary() {
     exit 1
   }
 }
+
+# a / b of two parsed times, printed with `digits` decimals; stops the script (exit 1) when either
+# is empty or not a positive number (a drifted log or table format would otherwise print a
+# truncated row and exit 0: awk's division by zero fails inside a command substitution).
+ratio() {  # ratio a b [digits]; a and b may carry blanks (table cells)
+  local re='^[0-9]*\.?[0-9]+([eE][-+]?[0-9]+)?$' a=${1//[[:space:]]/} b=${2//[[:space:]]/}
+  if ! [[ "$a" =~ $re && "$b" =~ $re ]] || ! awk -v a="$a" -v b="$b" 'BEGIN { exit !(a > 0 && b > 0) }'; then
+    echo "$bench_script: could not read two times from the runs ('$1', '$2')" >&2
+    exit 1
+  fi
+  awk -v a="$a" -v b="$b" -v d="${3:-2}" 'BEGIN { printf "%.*f", d, a / b }'
+}

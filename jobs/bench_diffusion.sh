@@ -5,7 +5,9 @@
 # BENCH_MEDIUM=smooth runs the cumulus without edge noise; BENCH_REPS=3 prints medians of 3 runs
 # (bare and solvers alternating).
 set -euo pipefail
-source "$(dirname "$0")/bench_args.sh"
+cd "$(dirname "$0")/.."  # the build directory is relative to the source tree, as in the other scripts
+source jobs/env.sh
+source jobs/bench_args.sh
 BUILD=${1:-build}
 shift || true
 SIZES=${*:-64 128}
@@ -13,7 +15,6 @@ BIN="$BUILD/bin/bench_diffusion"
 need_binary "$BIN" bench_diffusion "$BUILD"
 for n in $SIZES; do need_count "N" "$n"; done
 [ -z "${BENCH_REPS:-}" ] || need_count BENCH_REPS "$BENCH_REPS"
-export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 for n in $SIZES; do
   for np in 1 2; do
     mpiexec -n "$np" --oversubscribe --bind-to none "$BIN" "$n" ${SOLVERS:-}

@@ -62,7 +62,8 @@ done
 for v in "${versions[@]}"; do
   t1=$(tr ' ' '\n' <<<"${T[${v}1]}" | grep -v '^$' | median)
   t2=$(tr ' ' '\n' <<<"${T[${v}2]}" | grep -v '^$' | median)
-  echo "2-rank speed-up of the tracing phase ($v, medians of $reps): $(awk -v a="$t1" -v b="$t2" 'BEGIN { printf "%.2f", a / b }')"
+  speedup=$(ratio "$t1" "$t2")  # exits on times it cannot read
+  echo "2-rank speed-up of the tracing phase ($v, medians of $reps): $speedup"
 done
 floor="${1:-build}/bin/bench_montecarlo"
 if [[ -x "$floor" ]]; then

@@ -27,18 +27,32 @@ import time
 import h5py
 
 
+MPI_ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+
+
+def mpi_command(args, sub, scene, sets):
+    """`mpiexec -n R nimbus SUB SCENE --set ...` on args.ranks ranks."""
+    cmd = ["mpiexec", "-n", str(args.ranks), "--oversubscribe", "--bind-to", "none", args.nimbus, sub, scene]
+    for s in sets:
+        cmd += ["--set", s]
+    return cmd
+
+
+def reference_sets(args):
+    """The settings of a scene's Monte Carlo reference run."""
+    return args.set + ["model.name=montecarlo", f"model.montecarlo.photons={args.reference_photons}"] + args.reference_set
+
+
 def run_nimbus(args, scene, sets, out_dir):
     """Runs `mpiexec -n R nimbus run SCENE --set ... --out DIR`; returns (wall seconds, report)."""
     os.makedirs(out_dir, exist_ok=True)
-    cmd = ["mpiexec", "-n", str(args.ranks), "--oversubscribe", "--bind-to", "none", args.nimbus, "run", scene]
-    for s in sets:
-        cmd += ["--set", s]
-    cmd += ["--set", "output.name=nimbus", "--out", out_dir]  # scenes may name their outputs
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    # Scenes may name their outputs or switch the HDF5 file off: the study reads DIR/nimbus.h5.
+    cmd = mpi_command(args, "run", scene, sets) + ["--set", "output.name=nimbus", "--set", "output.hdf5=true",
+                                                   "--out", out_dir]
     print("+", " ".join(cmd), flush=True)
     start = time.monotonic()
     with open(os.path.join(out_dir, "log.txt"), "w") as log:
-        rc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, env=env).returncode
+        rc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, env=MPI_ENV).returncode
     wall = time.monotonic() - start
     if rc != 0:
         with open(os.path.join(out_dir, "log.txt")) as log:
@@ -56,11 +70,8 @@ def preflight(args, scene, sets):
     """`nimbus info` with the run's settings on args.ranks ranks: the checks a run makes before it
     computes, in about a second, so that a bad model or key stops the study before the long
     reference run. Returns None if the scene would run, else nimbus's error line."""
-    cmd = ["mpiexec", "-n", str(args.ranks), "--oversubscribe", "--bind-to", "none", args.nimbus, "info", scene]
-    for s in sets:
-        cmd += ["--set", s]
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
-    r = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
+    cmd = mpi_command(args, "info", scene, sets)
+    r = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=MPI_ENV)
     if r.returncode == 0:
         return None
     errors = [l.strip() for l in r.stderr.splitlines() if "error:" in l]
@@ -72,8 +83,7 @@ def compare(args, run_dir, ref_dir):
     a_img, b_img = os.path.join(run_dir, "nimbus.exr"), os.path.join(ref_dir, "nimbus.exr")
     if os.path.exists(a_img) and os.path.exists(b_img):
         cmd += ["--image-a", a_img, "--image-b", b_img]
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
-    out = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    out = subprocess.run(cmd, capture_output=True, text=True, env=MPI_ENV)
     if out.returncode != 0:
         raise RuntimeError(f"nimbus compare failed: {out.stderr.strip()}")
     return json.loads(out.stdout)
@@ -92,8 +102,9 @@ def solve_seconds(report):
     for p in report.get("phases", []):
         if p["name"] == "model":
             return p["seconds"]
-    # The HDF5 file stores the report as it stood before the output was written.
-    return report.get("total_seconds", report.get("total_seconds_before_output", float("nan")))
+    # The HDF5 file stores the report as it stood before the output was written: no
+    # "total_seconds" yet, but the pipeline's "total_seconds_before_output" among its values.
+    return report.get("values", {}).get("total_seconds_before_output", float("nan"))
 
 
 def plot(rows, path):
@@ -147,8 +158,14 @@ def main():
         raise SystemExit(f"study: no nimbus executable at {args.nimbus} (build it: bash jobs/build.sh; or --nimbus PATH)")
     # Every run's settings checked before anything long runs: a model that does not support a
     # scene is skipped later with its reason; any other refusal stops the study here.
+    # Each scene's runs go to OUT/<file name without .toml>: two scenes of one name would share it.
+    tags = [os.path.splitext(os.path.basename(scene))[0] for scene in args.scenes]
+    for tag in set(tags):
+        if tags.count(tag) > 1:
+            same = [scene for scene, t in zip(args.scenes, tags) if t == tag]
+            raise SystemExit(f"study: scenes {', '.join(same)} would share the folder {args.out}/{tag}: rename one")
     for scene in args.scenes:
-        ref_sets = args.set + ["model.name=montecarlo", f"model.montecarlo.photons={args.reference_photons}"] + args.reference_set
+        ref_sets = reference_sets(args)
         for label, sets in [("reference", ref_sets)] + [(label, args.set + sets) for label, sets in models]:
             error = preflight(args, scene, sets)
             if error and not (label != "reference" and "does not support" in error):
@@ -159,7 +176,7 @@ def main():
     for scene in args.scenes:
         tag = os.path.splitext(os.path.basename(scene))[0]
         ref_dir = os.path.join(args.out, tag, "reference")
-        ref_sets = args.set + ["model.name=montecarlo", f"model.montecarlo.photons={args.reference_photons}"] + args.reference_set
+        ref_sets = reference_sets(args)
         if args.reuse_reference and os.path.exists(os.path.join(ref_dir, "nimbus.h5")):
             ref_wall = float("nan")
             print(f"{tag}: reusing the reference in {ref_dir}", flush=True)
