@@ -5,10 +5,11 @@
 # 10⁷ collisions/s per core and a 2-rank speed-up ≥ 1.8.
 #   bash jobs/bench_montecarlo.sh [build-dir [photons [reps [reference-nimbus]]]]
 #   (defaults: build, 4000000, 3)
-# With a fourth argument (a nimbus binary of another version), both run alternately, so that a
-# shared machine's load hits both alike (rows labelled "new" / "ref"). Then the kernel's floor:
-# bench_montecarlo (jobs/bench/bench_montecarlo.cpp) runs the same path kernel on a small
-# periodic grid that stays in cache (needs -DNIMBUS_BUILD_BENCHMARKS=ON).
+# Rows "new" (the default kernel: lanes where the CPU has AVX-512) and "scalar" (the same binary
+# with model.montecarlo.kernel = "scalar") run alternately, so that a shared machine's load hits
+# both alike; with a fourth argument (a nimbus binary of another version) it runs in turn too
+# (row "ref"). Then the kernels' floor: bench_montecarlo (jobs/bench/bench_montecarlo.cpp) runs
+# both path kernels on a small periodic grid that stays in cache (needs -DNIMBUS_BUILD_BENCHMARKS=ON).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source jobs/env.sh
@@ -26,10 +27,12 @@ trap 'rm -f "$log"' EXIT
 
 # One run: prints "trace_seconds paths/s/core collisions/s/core segments/collision"; a failed
 # run stops the script with the end of nimbus's log.
-run() {
-  if ! mpiexec -n "$2" "$1" run --set model.montecarlo.photons="$photons" --set output.image=false \
-         --set output.hdf5=false --set light.method=sweep > "$log" 2>&1; then
-    { echo "$bench_script: $1 on $2 rank(s) failed:"; tail -5 "$log"; } >&2
+run() {  # run BINARY RANKS [more nimbus arguments]
+  local binary=$1 np=$2
+  shift 2
+  if ! mpiexec -n "$np" "$binary" run --set model.montecarlo.photons="$photons" --set output.image=false \
+         --set output.hdf5=false --set light.method=sweep "$@" > "$log" 2>&1; then
+    { echo "$bench_script: $binary on $np rank(s) failed:"; tail -5 "$log"; } >&2
     exit 1
   fi
   awk '
@@ -43,13 +46,14 @@ median() { sort -g | awk '{ v[NR] = $1 } END { print v[int((NR + 1) / 2)] }'; }
 echo "| version | ranks | photons | tracing s | paths/s per core | collisions/s per core | tallied segments per collision |"
 echo "| --- | --- | --- | --- | --- | --- | --- |"
 declare -A T P C S
-versions=(new)
+versions=(new scalar)  # scalar: the same binary with model.montecarlo.kernel = "scalar"
 [[ -n "$ref" ]] && versions+=(ref)
 for np in 1 2; do
   for ((r = 0; r < reps; ++r)); do
     for v in "${versions[@]}"; do
       b="$bin"; [[ "$v" == ref ]] && b="$ref"
-      out=$(run "$b" "$np")  # set -e: a failed run ends the script (run printed why)
+      extra=(); [[ "$v" == scalar ]] && extra=(--set 'model.montecarlo.kernel="scalar"')
+      out=$(run "$b" "$np" "${extra[@]}")  # set -e: a failed run ends the script (run printed why)
       read -r t p c s <<<"$out"
       T[$v$np]+="$t "; P[$v$np]+="$p "; C[$v$np]+="$c "; S[$v$np]+="$s "
     done

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <utility>
 
+#include "solvers/montecarlo/trace_lanes.h"
 #include "solvers/montecarlo/trace_light.h"
 
 namespace nimbus::mc {
@@ -13,10 +14,12 @@ KeptBatches::KeptBatches(const ReplicatedProblem& p, bool tally_reduced)
     if (tally_reduced) rsum.assign(sum.size(), 0.0), rsumsq.assign(sum.size(), 0.0);
 }
 
-BatchInFlight::BatchInFlight(ReplicatedProblem& p, const MonteCarloOptions& opt, const ForwardSettings& settings)
+BatchInFlight::BatchInFlight(ReplicatedProblem& p, const MonteCarloOptions& opt, const ForwardSettings& settings,
+                             bool lanes)
     : p_(p), opt_(opt), settings_(settings),
       tally_(static_cast<size_t>(p.padded_cells) * p.nb, 0.0),
-      counters_(static_cast<size_t>(p.nb), Counters{}) {
+      counters_(static_cast<size_t>(p.nb), Counters{}),
+      lanes_(lanes && !settings.forced_first_collision && !settings.tally_reduced) {
     if (settings.tally_reduced)
         rtally_.assign(tally_.size(), 0.0), reduced_acc_.assign(static_cast<size_t>(p.padded_cells), 0.0);
     const auto cells = static_cast<size_t>(std::min<std::int64_t>(p.padded_cells, 1 << 20));
@@ -95,8 +98,11 @@ void BatchInFlight::trace(int batch, int layout, std::int64_t k0, std::int64_t k
             LightTerm term{emitter ? nullptr : &p_.entry[l], emitter ? Vec3{0, 0, -1} : p_.lights[l].w, emitter,
                            static_cast<std::uint32_t>(l)};
             term.tally_scale = alpha == 0.0 ? 1.0 : alpha;
-            trace_photons(grid, po, term, opt_.seed, from, to, settings_.forced_first_collision,
-                          settings_.tally_reduced ? reduced_acc_.data() : nullptr, light_touched_, pt);
+            if (lanes_)
+                trace_photons_lanes(grid, po, term, opt_.seed, from, to, light_touched_, pt);
+            else
+                trace_photons(grid, po, term, opt_.seed, from, to, settings_.forced_first_collision,
+                              settings_.tally_reduced ? reduced_acc_.data() : nullptr, light_touched_, pt);
             if (gi == 0) photons_ += to - from;  // a photon traced once per optics group
             collisions_ += pt.collisions;
             segments_ += pt.segments;

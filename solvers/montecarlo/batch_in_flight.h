@@ -35,8 +35,9 @@ struct KeptBatches {
 class BatchInFlight {
 public:
     // Tracing accumulates in p's voxels (Voxel::tally) and zeroes them again before trace()
-    // returns; p must outlive the batch.
-    BatchInFlight(ReplicatedProblem& p, const MonteCarloOptions& opt, const ForwardSettings& settings);
+    // returns; p must outlive the batch. lanes: trace with the lane kernel (trace_lanes.h) where
+    // the settings allow it (not with the forced first collision or the reduced tally).
+    BatchInFlight(ReplicatedProblem& p, const MonteCarloOptions& opt, const ForwardSettings& settings, bool lanes);
 
     // Traces part [k0, k1) of the `steps` steps of `batch` (of `layout` batches) into the batch:
     // of every term with N photons, the photons [lo + (hi - lo) k0 / steps, lo + (hi - lo) k1 /
@@ -73,6 +74,7 @@ private:
     std::vector<std::int64_t> touched_, light_touched_;  // cells tallied in the batch / by the term
     std::vector<Counters> counters_;
     std::int64_t photons_ = 0, collisions_ = 0, segments_ = 0;
+    bool lanes_ = false;
 };
 
 }  // namespace nimbus::mc

@@ -11,6 +11,7 @@
 
 #include "solvers/montecarlo/batch_in_flight.h"
 #include "solvers/montecarlo/replicated_problem.h"
+#include "solvers/montecarlo/trace_lanes.h"
 #include "src/core/error.h"
 #include "src/core/gather.h"
 #include "src/core/halo.h"
@@ -201,6 +202,17 @@ int batch_split(double batch_seconds, double seconds_left, int batches, int rank
     return split;
 }
 
+void check_kernel(MPI_Comm comm, const MonteCarloOptions& opt) {
+    check_collective(comm, opt.kernel != "lanes" || lane_kernel_supported(),
+                     "model.montecarlo.kernel = \"lanes\" needs AVX-512 (x86-64-v4), which this CPU lacks: use "
+                     "\"auto\" or \"scalar\"");
+}
+
+bool uses_lane_kernel(const MonteCarloOptions& opt, const ForwardSettings& settings) {
+    if (settings.forced_first_collision || settings.tally_reduced || opt.kernel == "scalar") return false;
+    return opt.kernel == "lanes" || lane_kernel_supported();
+}
+
 ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                             const std::vector<DirectionalLight>& lights,
                             const MonteCarloOptions& opt, const ForwardSettings& settings) {
@@ -212,13 +224,16 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                             const std::vector<VolumeSource>& sources,
                             const MonteCarloOptions& opt, const ForwardSettings& settings) {
     opt.validate();
+    check_kernel(d.comm(), opt);
     const double t_start = wall_time();
     const int nb = medium.nbands();
     ReplicatedProblem problem = replicate_problem(d, medium, lights, sources, opt, settings);
     ForwardResult res;
     res.replicated_gb = problem.replicated_gb;
     KeptBatches kept_sums(problem, settings.tally_reduced);
-    BatchInFlight flight(problem, opt, settings);
+    const bool lanes = uses_lane_kernel(opt, settings);
+    BatchInFlight flight(problem, opt, settings, lanes);
+    res.kernel = lanes ? "lanes" : "scalar";
     const double t_setup = wall_time();
 
     // The batch layout: batch b of term l is [b n_l / layout, (b+1) n_l / layout); layout is

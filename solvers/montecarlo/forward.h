@@ -98,7 +98,15 @@ struct ForwardResult {
     double replicated_gb = 0.0;                // per-rank memory of the replicated arrays
     double rel_error = 0.0;                    // relative standard error of diffuse_volume (all bands)
     std::string stop_reason;                   // "photons", "time_budget", "target_rel_error"
+    std::string kernel;                        // the path kernel that traced: "lanes" or "scalar"
 };
+
+// Throws Error on every rank when opt.kernel is "lanes" and the CPU of some rank cannot run it
+// (trace_lanes.h). Collective over comm.
+void check_kernel(MPI_Comm comm, const MonteCarloOptions& opt);
+// Whether trace_forward traces with the lane kernel: opt.kernel "lanes", or "auto" on a CPU that
+// runs it, and settings without the forced first collision and the reduced tally.
+bool uses_lane_kernel(const MonteCarloOptions& opt, const ForwardSettings& settings);
 
 // Bytes per rank of the replicated arrays of trace_forward for a grid (or walked box) of
 // `cells` cells: density (gathered + global), the 16-byte voxels per optics group, per band the

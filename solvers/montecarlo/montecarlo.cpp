@@ -58,6 +58,7 @@ public:
             {"batches", r.batches},
             {"layout_batches", r.layout_batches},
             {"stop_reason", r.stop_reason},
+            {"kernel", r.kernel},
             {"seconds", r.seconds},
             {"setup_seconds", r.setup_seconds},
             {"trace_seconds", r.trace_seconds},
@@ -68,10 +69,10 @@ public:
             {"rel_error_total_diffuse", r.rel_error},
             {"replicated_memory_gb", r.replicated_gb},
             {"energy", energy}};
-        log::info("montecarlo: {} photons, {} collisions in {:.2f} s ({} batches, stop: {}): setup {:.3f} s, "
-                  "tracing {:.3f} s, reduction {:.3f} s",
-                  r.photons, r.collisions, r.seconds, r.batches, r.stop_reason, r.setup_seconds, r.trace_seconds,
-                  r.reduce_seconds);
+        log::info("montecarlo: {} photons, {} collisions in {:.2f} s ({} batches, stop: {}, {} kernel): setup "
+                  "{:.3f} s, tracing {:.3f} s, reduction {:.3f} s",
+                  r.photons, r.collisions, r.seconds, r.batches, r.stop_reason, r.kernel, r.setup_seconds,
+                  r.trace_seconds, r.reduce_seconds);
         log::info("montecarlo: tracing {:.3g} paths/s/core, {:.3g} collisions/s/core ({:.3g} over the whole "
                   "solve; {:.1f} tallied cell segments per collision), relative error of the total diffuse power "
                   "{:.2e}, replicated grid {:.3f} GB per rank",
@@ -83,6 +84,7 @@ public:
     bool renders_image() const override { return opt_.image; }
     // The limit trace_forward enforces, before the light pass.
     void check(const Scene& s, const Decomposition& d, const Medium&) const override {
+        mc::check_kernel(d.comm(), opt_);
         mc::check_replicated_memory(d.global().hi, replicated_bytes(s, d), opt_);
     }
     double memory_bytes(const Scene& s, const Decomposition& d, int) const override { return replicated_bytes(s, d); }

@@ -46,6 +46,13 @@ public:
         return (static_cast<double>(block_[next_++]) + 0.5) * 0x1p-32;
     }
 
+    // How many uniforms this stream has given: the next is word draws() % 4 of block
+    // draws() / 4 (the lane kernel, trace_lanes.h, continues a path's stream from there).
+    // The four words of block draws() / 4, the one the next uniform comes from.
+    const Philox4x32& next_draw_block() const { return next_ == 4 ? next_block_ : block_; }
+
+    std::uint64_t draws() const { return ctr_[0] == 0 ? 0 : (std::uint64_t{ctr_[0]} - 1) * 4 + static_cast<std::uint64_t>(next_); }
+
 private:
     [[gnu::always_inline]] void refill() {
         block_ = next_block_;

@@ -19,6 +19,8 @@ void MonteCarloOptions::validate() const {
         throw Error("model.montecarlo.roulette_weight must be in (0, 1)");
     if (!(max_replicated_memory_gb > 0 && std::isfinite(max_replicated_memory_gb))) throw Error("model.montecarlo.max_replicated_memory_gb must be > 0");
     if (samples_per_pixel < 1) throw Error("model.montecarlo.samples_per_pixel must be >= 1");
+    if (kernel != "auto" && kernel != "lanes" && kernel != "scalar")
+        throw Error(fmt::format("model.montecarlo.kernel = '{}': allowed are auto, lanes, scalar", kernel));
 }
 
 void DiffusionOptions::validate() const {

@@ -34,6 +34,7 @@ struct MonteCarloOptions {
     double max_replicated_memory_gb = 8.0;  // the density grid is replicated on every rank
     bool image = false;                 // also path-trace the camera image
     int samples_per_pixel = 64;         // for the path-traced image
+    std::string kernel = "auto";        // forward paths: auto (lanes where the CPU has AVX-512) | lanes | scalar
     void validate() const;
     bool operator==(const MonteCarloOptions&) const = default;
 };
@@ -50,6 +51,7 @@ void for_each_option(O& o, F&& f) {
     f("max_replicated_memory_gb", o.max_replicated_memory_gb);
     f("image", o.image);
     f("samples_per_pixel", o.samples_per_pixel);
+    f("kernel", o.kernel);
 }
 
 // The diffusion model on hypre (solvers/diffusion).

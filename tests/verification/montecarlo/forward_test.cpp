@@ -17,6 +17,7 @@
 #include "solvers/montecarlo/forward.h"
 #include "solvers/montecarlo/montecarlo.h"
 #include "solvers/montecarlo/philox.h"
+#include "solvers/montecarlo/trace_lanes.h"
 #include "src/core/error.h"
 #include "tests/support/mpi_test.h"
 #include "tests/support/slab_reference.h"
@@ -439,6 +440,33 @@ TEST(Forward, TermsOfOneColourFoldedTogetherGiveTheSameFields) {
         for (int q = 0; q < ncounters; ++q)
             EXPECT_NEAR(a.counters[band][q], b.counters[band][q], 1e-12 * b.counters[band][incident]);
     }
+}
+
+// The lane kernel (trace_lanes.h, the default where the CPU has AVX-512) traces the photons the
+// scalar kernel traces, on the same paths: the same collisions, the fields and counters to
+// round-off, on any rank count.
+TEST(Forward, LaneAndScalarKernelsGiveTheSameFields) {
+    if (!lane_kernel_supported()) GTEST_SKIP() << "this CPU has no AVX-512: the lane kernel never runs here";
+    const std::vector<DirectionalLight> L{beam(0.7), {"sky[0]", normalized(Vec3{0.3, -0.5, -0.6}), {0.4}}};
+    Slab slab(MPI_COMM_WORLD, 3.0, 0.95, 0.6, {8, 8, 12});
+    MonteCarloOptions scalar = options(6000), lanes = options(6000);
+    scalar.kernel = "scalar";
+    lanes.kernel = "lanes";
+    const ForwardResult a = trace_forward(slab.d, slab.m, L, scalar);
+    const ForwardResult b = trace_forward(slab.d, slab.m, L, lanes);
+    EXPECT_EQ(a.kernel, "scalar");
+    EXPECT_EQ(b.kernel, "lanes");
+    EXPECT_EQ(a.collisions, b.collisions);
+    EXPECT_EQ(a.segments, b.segments);
+    double peak = 0.0, worst = 0.0;
+    for_each_cell(slab.d.local(), [&](int i, int j, int k) { peak = std::max(peak, a.fluence[0](i, j, k)); });
+    for_each_cell(slab.d.local(), [&](int i, int j, int k) {
+        worst = std::max({worst, std::abs(a.fluence[0](i, j, k) - b.fluence[0](i, j, k)),
+                          std::abs(a.fluence_stderr[0](i, j, k) - b.fluence_stderr[0](i, j, k))});
+    });
+    EXPECT_GT(peak, 0.0);
+    EXPECT_LT(worst, 1e-12 * peak);
+    for (int q = 0; q < ncounters; ++q) EXPECT_NEAR(a.counters[0][q], b.counters[0][q], 1e-12 * a.counters[0][incident]);
 }
 
 TEST(Forward, ReplicatedMemoryLimitIsACollectiveError) {
