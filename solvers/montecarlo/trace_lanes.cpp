@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <cassert>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -384,7 +385,8 @@ struct Masks {
     m8 collided = 0;    // parked at a collision (st.t: its distance, the walk's tn at it)
     m8 exited = 0;      // parked on the ghost layer along axis `last`
     m8 empty = 0xFF;    // no path
-    m8 last[3] = {0, 0, 0};  // the axis of the lane's last step
+    m8 last[3] = {0, 0, 0};  // the axis of the lane's last step (a refilled lane keeps its old one:
+                             // a path starts inside the box and steps before it can reach a ghost)
 };
 
 // Energy sums of a group's lanes (photon weights), reduced into PathTally at the end.
@@ -535,7 +537,7 @@ NIMBUS_V4_INLINE void set_up_flights(const GridView& g, LaneStore& st, m8 k) {
     _mm512_mask_store_pd(st.t, k, _mm512_setzero_pd());
 }
 
-// Lane `from` of a started-ahead store into lane `to` of st: a new photon's state.
+// Lane q of a started-ahead store into lane l of st: every field start_light_photons writes.
 inline void move_start(const LaneStore& from, int q, LaneStore& st, int l) {
     st.idx[l] = from.idx[q];
     st.tau[l] = from.tau[q];
@@ -577,6 +579,7 @@ NIMBUS_V4 void serve(Context& c, LaneStore& st, Masks& m, LaneSums& sums) {
             if (c.taken == c.ready) {
                 c.ready = static_cast<int>(std::min<std::int64_t>(kLanes, c.hi - c.next));
                 c.taken = 0;
+                assert(c.ready > 0);  // k was trimmed to the photons left, so one is left here
                 start_light_photons(c, c.ahead, static_cast<m8>((1u << c.ready) - 1));
             }
             move_start(c.ahead, c.taken++, st, l);

@@ -19,8 +19,9 @@
 // lanes are parked (or none walks), the parked lanes are served together, all in lanes: exits
 // booked (the domain face the path leaves by), collisions scattered (implicit capture,
 // roulette, HG, azimuth, turn, the next free path), the lanes left empty refilled with the next
-// photons (the entry sampler's faces and live pixels; volume sources' photons start in scalar
-// code), and the new flights set up. Two groups of eight lanes take passes in turn, so the core
+// photons (a light's photons are started eight at a time, the entry sampler's faces and live
+// pixels in lanes, and wait in a store for the lanes that take them; volume sources' photons
+// start in scalar code), and the new flights set up. Two groups of eight lanes take passes in turn, so the core
 // overlaps their chains; each pass prefetches the cells its lanes reach by a unit step. Photons
 // enter the lanes in index order, so a batch gives the same result whichever rank traces it.
 //
