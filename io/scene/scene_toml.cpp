@@ -8,12 +8,15 @@
 
 #include <fmt/format.h>
 
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <regex>
 #include <sstream>
 #include <type_traits>
+#include <utility>
 
 #include "io/scene/default_scene.h"
 #include "io/scene/scene_overrides.h"
@@ -85,7 +88,8 @@ std::string key_of_validation_message(const std::string& msg, const Scene& scene
         for (int b = 0; b < scene.nbands(); ++b) {
             const BandOptics& o = scene.bands[static_cast<size_t>(b)];
             if (o.name != m[1].str()) continue;
-            const bool bad = prop == "sigma_t" ? !(std::isfinite(o.sigma_t) && o.sigma_t >= 0)
+            const bool bad = prop == "sigma_t" ? !(std::isfinite(o.sigma_t) && o.sigma_t >= 0 &&
+                                                   o.sigma_t <= std::numeric_limits<float>::max())
                            : prop == "albedo"  ? !(o.albedo >= 0 && o.albedo <= 1)
                                                : !(std::abs(o.g) < 1);
             if (match < 0 || bad) match = b;
@@ -283,7 +287,30 @@ void read_options(const TableReader& model, const std::string& name, Options& o)
     });
 }
 
+// Names users reach for that the literature uses for our models: a hint, not an alias, so that
+// a scene names each model one way.
+const std::vector<std::pair<std::string, std::string>> kModelNameHints = {
+    {"blur", "psf (the path-integral blur model, Premoze et al. 2004)"},
+    {"pathintegral", "psf (the path-integral blur model, Premoze et al. 2004)"},
+    {"path_integral", "psf (the path-integral blur model, Premoze et al. 2004)"},
+    {"p1", "diffusion (the P1 diffusion approximation)"},
+    {"discrete_ordinates", "dom (discrete ordinates)"},
+    {"sn", "dom (discrete ordinates)"},
+    {"mc", "montecarlo"},
+    {"monte_carlo", "montecarlo"},
+    {"singlescatter", "single (single scattering)"},
+    {"single_scattering", "single (single scattering)"},
+};
+
 void read_model(const TableReader& t, ModelSpec& m) {
+    if (t.has("name") && t.at("name").is_string()) {
+        std::string name = t.at("name").as_string().str;
+        for (auto& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        for (const auto& [alias, model] : kModelNameHints)
+            if (name == alias)
+                t.fail("name", fmt::format("= \"{}\" is not allowed; did you mean {}? allowed: {}",
+                                           t.at("name").as_string().str, model, scene_io::join(kModelNames)));
+    }
     if (t.has("name")) m.name = kModelNames[static_cast<size_t>(t.read_choice("name", kModelNames, 0))];
     read_options(t, "montecarlo", m.montecarlo);
     read_options(t, "diffusion", m.diffusion);

@@ -32,6 +32,10 @@ std::string short_value(const toml::value& v) {
 
 // "(found string "abc")" for messages about a value of the wrong type.
 std::string found(const toml::value& v) {
+    if (v.is_array()) {
+        const size_t n = v.as_array().size();
+        return fmt::format("(found an array of {} {})", n, n == 1 ? "entry" : "entries");
+    }
     const std::string s = short_value(v);
     return s.empty() ? fmt::format("(found {})", type_name(v))
                      : fmt::format("(found {} {})", type_name(v), s);
@@ -146,6 +150,10 @@ double TableReader::number(const toml::value& v, const std::string& key,
     // through every range check written as `x < lo || x > hi`.
     if (v.is_floating() && !std::isfinite(v.as_floating()))
         fail(key, fmt::format("= {} must be a finite number", v.as_floating()));
+    // toml11 reads a literal beyond the double range (1e400) as the largest double, silently:
+    // that value itself is therefore refused, as the integer limits are below.
+    if (v.is_floating() && std::abs(v.as_floating()) == std::numeric_limits<double>::max())
+        fail(key, "is beyond the range of a double (about 1.8e308): must be a finite number");
     if (v.is_floating()) return v.as_floating();
     if (v.is_integer()) return static_cast<double>(v.as_integer());
     fail(key, fmt::format("must be {} {}", expected, found(v)));
@@ -218,7 +226,8 @@ void TableReader::read(const std::string& key, std::array<int, 3>& out) const {
     if (!v.is_array() || v.as_array().size() != 3) bad();
     for (int d = 0; d < 3; ++d) {
         const toml::value& e = v.as_array()[static_cast<size_t>(d)];
-        if (!e.is_integer()) bad();
+        if (!e.is_integer())
+            fail(key, fmt::format("must be an array of 3 integers: entry {} is not an integer {}", d, found(e)));
         if (e.as_integer() < std::numeric_limits<int>::min() || e.as_integer() > std::numeric_limits<int>::max())
             fail(key, fmt::format("entry {} = {} is outside the range of a 32-bit integer", d, e.as_integer()));
         out[static_cast<size_t>(d)] = static_cast<int>(e.as_integer());

@@ -18,12 +18,19 @@ void require(bool ok, const std::string& msg) {
     if (!ok) throw Error(msg);
 }
 
+// The output stores fields in single precision: a scene number beyond it (or a product of them,
+// a cell's optical thickness, the domain's extent) makes solvers overflow before any output.
+constexpr double kFloatMax = std::numeric_limits<float>::max();
+
 void require_bands(const std::vector<double>& v, int nb, const char* key) {
     require(static_cast<int>(v.size()) == nb || v.size() == 1,
             nb == 1 ? fmt::format("{} has {} values but the scene has 1 band: give 1", key, v.size())
                     : fmt::format("{} has {} values but the scene has {} bands: give 1 or {}", key, v.size(), nb, nb));
-    for (double x : v)
+    for (double x : v) {
         require(std::isfinite(x) && x >= 0.0, fmt::format("{} = {} must be finite and >= 0", key, x));
+        require(x <= kFloatMax, fmt::format("{} = {} is beyond single precision ({:.3g}), in which the output "
+                                            "stores the fields it scales", key, x, kFloatMax));
+    }
 }
 
 // [[sources]]: boxes, powers, and whether the model supports volume emission.
@@ -124,12 +131,18 @@ void Scene::validate() const {
                                          grid.n[0], grid.n[1], grid.n[2], cells, 0x1p50));
     require(std::isfinite(grid.h()) && grid.h() > 0,
             fmt::format("grid.cell_size = {} must be > 0", grid.cell_size));
+    const double extent = std::max({grid.n[0], grid.n[1], grid.n[2]}) * grid.h();
+    require(extent <= kFloatMax,
+            fmt::format("grid.cell_size = {} puts the domain's side at {:.3g} m, beyond single precision ({:.3g})",
+                        grid.cell_size, extent, kFloatMax));
     require(!bands.empty(), "optics: at least one band is required");
     validate_band_names(bands);
     for (size_t b = 0; b < bands.size(); ++b) {
         const auto& o = bands[b];
         require(std::isfinite(o.sigma_t) && o.sigma_t >= 0,
                 fmt::format("optics band '{}': sigma_t = {} must be finite and >= 0", o.name, o.sigma_t));
+        require(o.sigma_t <= kFloatMax, fmt::format("optics band '{}': sigma_t = {} is beyond single precision ({:.3g})",
+                                                    o.name, o.sigma_t, kFloatMax));
         require(o.albedo >= 0 && o.albedo <= 1,
                 fmt::format("optics band '{}': albedo = {} is outside [0, 1]", o.name, o.albedo));
         require(std::abs(o.g) < 1, fmt::format("optics band '{}': g = {} must satisfy |g| < 1", o.name, o.g));
@@ -140,6 +153,11 @@ void Scene::validate() const {
     require(medium.density <= std::numeric_limits<float>::max(),
             fmt::format("medium.density = {} is beyond single precision ({:.3g}), in which the output stores it",
                         medium.density, std::numeric_limits<float>::max()));
+    for (const auto& o : bands)
+        require(medium.density * o.sigma_t * grid.h() <= kFloatMax,
+                fmt::format("medium.density x optics band '{}' sigma_t x grid.cell_size = {:.3g}: a cell's optical "
+                            "thickness is beyond single precision ({:.3g})",
+                            o.name, medium.density * o.sigma_t * grid.h(), kFloatMax));
     if (sun.enabled) {
         require(norm(sun.direction) > 0 && std::isfinite(norm(sun.direction)),
                 "sun.direction must be a non-zero finite vector");

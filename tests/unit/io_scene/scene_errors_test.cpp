@@ -232,10 +232,22 @@ TEST(SceneErrors, Sources) {
         edit("name = \"single\"", dom + clear_band + "[[sources]]\nlo = [0, 0, 0]\nhi = [1, 1, 1]\npower = [1, 0]"), "ok.toml"));
 }
 
+// Names from the papers for our models get a pointer to the model, not a bare "not allowed".
+TEST(SceneErrors, ModelNamesFromTheLiterature) {
+    expect_error(edit("name = \"single\"", "name = \"blur\""), "name = \"blur\"",
+                 {"model.name = \"blur\" is not allowed; did you mean psf (the path-integral blur model"});
+    expect_error(edit("name = \"single\"", "name = \"PathIntegral\""), "name = \"PathIntegral\"", {"did you mean psf"});
+    expect_error(edit("name = \"single\"", "name = \"mc\""), "name = \"mc\"", {"did you mean montecarlo?"});
+    expect_error(edit("name = \"single\"", "name = \"p1\""), "name = \"p1\"", {"did you mean diffusion"});
+}
+
 TEST(SceneErrors, WrongType) {
     expect_error(edit("n = [8, 8, 8]", "n = \"big\""), "n = \"big\"",
                  {"grid.n must be an array of 3 integers", "found string \"big\""});
-    expect_error(edit("n = [8, 8, 8]", "n = [8, 8.5, 8]"), "n = [8", {"grid.n must be an array of 3 integers"});
+    expect_error(edit("n = [8, 8, 8]", "n = [8, 8.5, 8]"), "n = [8",
+                 {"grid.n must be an array of 3 integers: entry 1 is not an integer (found float 8.5)"});
+    expect_error(edit("n = [8, 8, 8]", "n = [8, 8,]"), "n = [8",
+                 {"grid.n must be an array of 3 integers (found an array of 2 entries)"});
     expect_error(edit("albedo = 0.9", "albedo = \"high\""), "albedo", {"optics[0].albedo must be a number"});
     expect_error(edit("", "[sun]\nenabled = \"yes\""), "enabled", {"sun.enabled must be true or false"});
     expect_error(edit("", "[sun]\nirradiance = [1, \"x\"]"), "irradiance",
@@ -284,6 +296,28 @@ TEST(SceneErrors, NonFiniteNumbers) {
     expect_error(edit("albedo = 0.9", "albedo = -nan"), "albedo = -nan", {"optics[0].albedo", "must be a finite number"});
     expect_error(edit("", "[sun]\nirradiance = [inf]"), "irradiance", {"sun.irradiance", "must be a finite number"});
     expect_error(edit("cell_size = 1.0", "cell_size = -inf"), "cell_size = -inf", {"grid.cell_size = -inf must be a finite number"});
+    // toml11 turns a literal beyond the double range into the largest double, silently.
+    expect_error(edit("cell_size = 1.0", "cell_size = 1e400"), "cell_size = 1e400",
+                 {"grid.cell_size is beyond the range of a double"});
+    expect_error(edit("", "[sun]\nirradiance = [-1e999]"), "irradiance", {"sun.irradiance is beyond the range of a double"});
+}
+
+// Finite numbers so large that a solver's arithmetic overflows are refused by name before any
+// solve (a cell size of 1e300 m failed in the ray caster as "render.step must be > 0", an
+// irradiance of 1e300 W/m^2 as NaN inside hypre).
+TEST(SceneErrors, NumbersBeyondSinglePrecisionScale) {
+    expect_error(edit("cell_size = 1.0", "cell_size = 1e300"), "cell_size = 1e300",
+                 {"grid.cell_size = 1e+300", "the domain", "beyond single precision"});
+    expect_error(edit("sigma_t = 1.0", "sigma_t = 1e39"), "sigma_t = 1e39",
+                 {"optics[0].sigma_t", "sigma_t = 1e+39 is beyond single precision"});
+    std::string thick = edit("density = 1.0", "density = 1e30");
+    thick.replace(thick.find("cell_size = 1.0"), 15, "cell_size = 1e10");
+    expect_error(thick, "density = 1e30",
+                 {"medium.density x optics band 'gray' sigma_t x grid.cell_size = 1e+40", "optical thickness"});
+    expect_error(edit("", "[sun]\nirradiance = 1e300"), "irradiance",
+                 {"sun.irradiance = 1e+300 is beyond single precision"});
+    expect_error(edit("", "[sky]\nradiance = 1e39"), "radiance", {"sky.radiance = 1e+39 is beyond single precision"});
+    EXPECT_NO_THROW(load_scene_string(edit("cell_size = 1.0", "cell_size = 1e20"), "ok.toml"));
 }
 
 // The options' own checks hold for values that bypass the reader (programs building options).

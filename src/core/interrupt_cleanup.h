@@ -1,0 +1,34 @@
+// What a run removes when a signal ends it (Ctrl-C, mpiexec passing on SIGTERM, a batch
+// system's time limit): the temporaries of its output files and the folders it created, so an
+// interrupted run leaves the output folder as it found it, like a failed one does. A failed run
+// cleans up by unwinding (OutputFiles, the pipeline's created folders); a signal does not
+// unwind, so those register their paths here as well.
+//
+//   interrupt_cleanup::install();                 // once, before the run (SIGINT, SIGTERM, SIGHUP)
+//   interrupt_cleanup::add_file("out/a.h5.123.tmp");
+//   interrupt_cleanup::add_folder("out");         // removed only if empty, after the files
+//   interrupt_cleanup::clear();                   // committed: nothing to remove any more
+//
+// The handler only calls unlink(2), rmdir(2), signal(2) and raise(3), which are
+// async-signal-safe; then the signal takes its default action (the exit status says so).
+// Paths are kept in a fixed table (kMaxPaths of kMaxPathBytes); beyond it they are not
+// registered (add_* returns false) and a signal leaves them behind. Not thread-safe: call from
+// the thread that runs the pipeline.
+#pragma once
+
+#include <string>
+
+namespace nimbus::interrupt_cleanup {
+
+inline constexpr int kMaxPaths = 64;
+inline constexpr int kMaxPathBytes = 4096;
+
+void install();
+bool add_file(const std::string& path);
+bool add_folder(const std::string& path);
+void clear();
+// Removes what is registered, as the handler would (files, then folders, latest first).
+// For tests, and for callers that must clean up without a signal.
+void remove_registered();
+
+}  // namespace nimbus::interrupt_cleanup
