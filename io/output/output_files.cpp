@@ -8,6 +8,7 @@
 #include <system_error>
 
 #include "src/core/error.h"
+#include "src/core/interrupt_cleanup.h"
 
 namespace nimbus {
 
@@ -47,6 +48,7 @@ OutputFiles::~OutputFiles() {
 
 std::string OutputFiles::add(const std::string& final_path) {
     files_.emplace_back(final_path + "." + token_ + ".tmp", final_path);
+    interrupt_cleanup::add_file(files_.back().first);  // a signal does not run the destructor
     return files_.back().first;
 }
 

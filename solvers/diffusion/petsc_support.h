@@ -85,6 +85,9 @@ inline void ensure_initialized(MPI_Comm comm) {
     MPI_Comm world = MPI_COMM_NULL;
     MPI_Comm_dup(comm, &world);
     PETSC_COMM_WORLD = world;
+    // PETSc's signal handler would replace nimbus's (src/core/interrupt_cleanup.h), which removes
+    // an interrupted run's temporaries; PETSc allows this option before PetscInitialize.
+    check(PetscOptionsSetValue(nullptr, "-no_signal_handler", nullptr), "petsc", "PetscOptionsSetValue");
     check(PetscInitializeNoArguments(), "petsc", "PetscInitialize");
 }
 

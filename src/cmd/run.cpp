@@ -4,6 +4,7 @@
 
 #include "src/cmd/commands.h"
 #include "src/cmd/memory.h"
+#include "src/core/interrupt_cleanup.h"
 #include "src/core/log.h"
 #include "src/pipeline/pipeline.h"
 
@@ -33,6 +34,7 @@ void add_run_command(CLI::App& app) {
     auto opts = std::make_shared<RunOptions>();
     auto* run = app.add_subcommand("run", "Solve a scene and write fields (HDF5 + XDMF) and an image (EXR + PNG).\n"
                                           "Without SCENE: the built-in default cloud.");
+    run->footer(kSceneHelpFooter);
     run->add_option("scene", opts->scene_path, "scene file (TOML)")->check(CLI::ExistingFile);
     run->add_option("--set", opts->overrides, "override a scene key, e.g. --set grid.n=[32,32,32] "
                                               "--set model.name=montecarlo (repeatable)")
@@ -40,6 +42,7 @@ void add_run_command(CLI::App& app) {
     run->add_option("--out", opts->out_dir, "output folder (default: the scene's output.dir)")
         ->check([](const std::string& dir) { return dir.empty() ? std::string("the folder name is empty") : std::string(); });
     run->callback([opts] {
+        interrupt_cleanup::install();  // an interrupted run removes its temporaries and new folders
         MPI_Comm comm = MPI_COMM_WORLD;
         const Scene scene = load_run_scene(comm, *opts);
         check_memory_fits(comm, estimate_memory(scene, Decomposition(comm, scene.grid.n, scene.grid.process_grid,

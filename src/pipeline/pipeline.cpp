@@ -17,6 +17,7 @@
 #include "solvers/light/sun_transmittance.h"
 #include "solvers/registry.h"
 #include "src/core/error.h"
+#include "src/core/interrupt_cleanup.h"
 #include "src/core/log.h"
 #include "src/render/raycaster.h"
 #include "src/scene/emission.h"
@@ -31,8 +32,14 @@ namespace fs = std::filesystem;
 // then are removed (fs::remove does not remove a folder with files), deepest first.
 class CreatedFolders {
 public:
-    void add(const fs::path& p) { created_.push_back(p); }
-    void keep() { created_.clear(); }
+    void add(const fs::path& p) {
+        created_.push_back(p);
+        interrupt_cleanup::add_folder(p.string());  // a signal does not run the destructor
+    }
+    void keep() {
+        created_.clear();
+        interrupt_cleanup::clear();  // the outputs are committed: nothing left to remove
+    }
     ~CreatedFolders() {
         std::error_code ec;
         for (auto it = created_.rbegin(); it != created_.rend(); ++it) fs::remove(*it, ec);
@@ -119,6 +126,26 @@ void log_scene(const Scene& s, const Decomposition& d, const ScatteringModel& mo
     if (!opts.empty()) log::info("model options: {}", opts.dump());
 }
 
+// A scene that runs but shows nothing: every fluence is zero. Legal (a test of the background,
+// an absorption-only render), so a warning, not an error; said once, by rank 0.
+void warn_if_dark(const Scene& scene, const Decomposition& d, const Medium& medium,
+                  const std::vector<DirectionalLight>& lights) {
+    std::int64_t filled = 0;
+    for_each_cell(d.local(), [&](int i, int j, int k) { filled += medium.rho(i, j, k) > 0; });
+    MPI_Allreduce(MPI_IN_PLACE, &filled, 1, MPI_INT64_T, MPI_SUM, d.comm());
+    bool lit = false;
+    for (const auto& l : lights)
+        for (double e : l.E0) lit = lit || e > 0;
+    for (const auto& src : scene.sources)
+        for (double p : src.power) lit = lit || p > 0;
+    if (filled == 0)
+        log::warn("the medium has no non-empty cells (density 0 everywhere): nothing scatters, fluence_diffuse "
+                  "is zero and the image shows the background (check medium.density and medium.kind)");
+    else if (!lit)
+        log::warn("the scene has no light: the sun is off or has zero irradiance, there is no sky and no "
+                  "[[sources]] emit, so every fluence is zero (check sun.enabled, sun.irradiance, sky.radiance)");
+}
+
 }  // namespace
 
 void check_finite_solution(const DiffuseSolution& diffuse, const Decomposition& d, const std::string& model) {
@@ -186,6 +213,7 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
     check_volume_sources(volume_sources(scene), medium.rho, d);
     model->check(scene, d, medium);
     check_lights_leave(d, make_lights(scene));  // after the model's own, more specific refusals
+    warn_if_dark(scene, d, medium, make_lights(scene));
 
     const LightTransport light = compute_light_transport(d, medium, make_lights(scene), report, {}, scene.light.method);
     DiffuseSolution diffuse;

@@ -111,5 +111,23 @@ else
   fail=$((fail + 1)); echo "FAIL: the small runs for compare did not run"
 fi
 
+# A run that shows nothing (no light, or no medium) runs, and says so once.
+check "run: no light warns" 0 "\[warning\] the scene has no light" run "${small[@]}" --set sun.enabled=false --set sky.radiance=0 --set output.image=false --out "$tmp/dark"
+check "run: no medium warns" 0 "\[warning\] the medium has no non-empty cells" run "${small[@]}" --set medium.density=0 --set output.image=false --out "$tmp/empty"
+
+# An interrupted run (Ctrl-C, SIGTERM from a batch system) leaves no temporary and removes the
+# folders it created, like a failed run: wait until the run has made its output folder, then
+# interrupt it during its (long) Monte Carlo phase.
+for sig in INT TERM; do
+  "$nimbus" run "${small[@]}" --set model.montecarlo.photons=2000000000 --out "$tmp/killed_$sig/sub" > "$tmp/killed.log" 2>&1 &
+  pid=$!
+  for _ in $(seq 300); do [ -d "$tmp/killed_$sig/sub" ] && break; sleep 0.1; done
+  made=no; [ -d "$tmp/killed_$sig/sub" ] && made=yes
+  sleep 0.5
+  kill -s "$sig" "$pid"; wait "$pid"; code=$?
+  if [ "$made" = yes ] && [ "$code" -ne 0 ] && [ ! -e "$tmp/killed_$sig" ]; then pass=$((pass + 1)); else
+    fail=$((fail + 1)); echo "FAIL: SIG$sig: folder made $made, exit $code, left behind:"; find "$tmp/killed_$sig" 2>&1 | head -5; tail -3 "$tmp/killed.log"; fi
+done
+
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]
