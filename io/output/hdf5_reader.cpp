@@ -3,6 +3,9 @@
 // to double by HDF5 on read.
 #include "io/output/hdf5_reader.h"
 
+#include <filesystem>
+#include <fstream>
+
 #include "io/output/hdf5_detail.h"
 #include "src/core/error.h"
 
@@ -13,8 +16,15 @@ namespace {
 h5::Handle open_file(const std::string& file) {
     h5::QuietErrors quiet;
     h5::Handle f = h5::file_handle(H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT));
-    if (!f.valid()) throw Error("cannot open HDF5 file '" + file + "'");
-    return f;
+    if (f.valid()) return f;
+    // Why not, in the user's terms: HDF5's own stack says "unable to open file" for all of these.
+    std::error_code ec;
+    const std::filesystem::path p(file);
+    if (!std::filesystem::exists(p, ec)) throw Error("cannot open HDF5 file '" + file + "': no such file");
+    if (std::filesystem::is_directory(p, ec)) throw Error("cannot open HDF5 file '" + file + "': it is a folder");
+    if (!std::ifstream(file)) throw Error("cannot open HDF5 file '" + file + "': it cannot be read (permissions?)");
+    throw Error("cannot open HDF5 file '" + file + "': it is not an HDF5 file, or it is truncated or damaged "
+                "(nimbus writes <name>.h5; the .xdmf beside it only points into it)");
 }
 
 std::string located(const std::string& file, const std::string& path) {

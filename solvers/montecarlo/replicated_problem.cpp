@@ -97,9 +97,9 @@ ReplicatedProblem replicate_problem(const Decomposition& d, const Medium& medium
     p.n_light = photons_per_light(power, opt.photons, opt.batches);
     const std::int64_t n_total = std::accumulate(p.n_light.begin(), p.n_light.end(), std::int64_t{0});
     if (n_total > opt.photons)
-        log::warn("montecarlo: {} photons asked for, {} traced: every lit term takes at least one photon per "
+        log::warn("montecarlo: {} photon{} asked for, {} traced: every lit term takes at least one photon per "
                   "batch ({} terms, {} batches)",
-                  opt.photons, n_total, std::count_if(power.begin(), power.end(), [](double v) { return v > 0; }),
+                  opt.photons, opt.photons == 1 ? "" : "s", n_total, std::count_if(power.begin(), power.end(), [](double v) { return v > 0; }),
                   opt.batches);
 
     // One padded voxel grid per optics group: kappa in 1/cell over the box.

@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <nlohmann/json.hpp>
@@ -74,6 +75,9 @@ void require_finite(const std::vector<T>& v, const std::string& file, const std:
 }
 
 nlohmann::json compare_runs(const CompareArgs& args) {
+    std::error_code ec;
+    if (std::filesystem::equivalent(args.a, args.b, ec))
+        log::warn("A and B are the same file ('{}'): every difference below is 0 by construction", args.a);
     const std::string field = "fields/" + args.field, err = field + "_stderr";
     // transmittance_sun is written only when the scene has a sun: say so rather than "no such group".
     if (args.field == "transmittance_sun")
@@ -90,9 +94,9 @@ nlohmann::json compare_runs(const CompareArgs& args) {
     // Comparing runs of different media is almost always a mistake: say so, but go on.
     const FieldData density_a = read_field(args.a, "fields/density");
     if (density_a.shape != density.shape)
-        throw Error(fmt::format("fields/density: grids differ ({}x{}x{} against {}x{}x{})", density_a.shape[0],
-                                density_a.shape[1], density_a.shape[2], density.shape[0], density.shape[1],
-                                density.shape[2]));
+        throw Error(fmt::format("fields/density: the grids differ: A '{}' has {}x{}x{} cells, B '{}' has {}x{}x{}",
+                                args.a, density_a.shape[0], density_a.shape[1], density_a.shape[2], args.b,
+                                density.shape[0], density.shape[1], density.shape[2]));
     const double density_diff = max_rel_difference(density_a.values, density.values);
     out["density_max_rel_diff"] = density_diff;
     // The same densities on cells of another size are another medium (other optical depths).
@@ -108,8 +112,9 @@ nlohmann::json compare_runs(const CompareArgs& args) {
         const FieldData fa = read_field(args.a, path), fb = read_field(args.b, path);
         if (fa.ncomp != 1 || fb.ncomp != 1) throw Error(fmt::format("{}: not a scalar field", path));
         if (fa.shape != fb.shape)
-            throw Error(fmt::format("{}: grids differ ({}x{}x{} against {}x{}x{})", path, fa.shape[0], fa.shape[1],
-                                    fa.shape[2], fb.shape[0], fb.shape[1], fb.shape[2]));
+            throw Error(fmt::format("{}: the grids differ: A '{}' has {}x{}x{} cells, B '{}' has {}x{}x{}", path,
+                                    args.a, fa.shape[0], fa.shape[1], fa.shape[2], args.b, fb.shape[0], fb.shape[1],
+                                    fb.shape[2]));
         require_finite(fa.values, args.a, path);
         require_finite(fb.values, args.b, path);
         std::vector<double> stderr_b;

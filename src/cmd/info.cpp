@@ -141,6 +141,7 @@ void info(const RunOptions& opts) {
 void add_info_command(CLI::App& app) {
     auto opts = std::make_shared<RunOptions>();
     auto* cmd = app.add_subcommand("info", "Describe a scene: grid, optical depths, memory per rank, suitable models.");
+    cmd->footer(kSceneHelpFooter);
     cmd->add_option("scene", opts->scene_path, "scene file (TOML); default: the built-in cloud")->check(CLI::ExistingFile);
     cmd->add_option("--set", opts->overrides, "override a scene key, e.g. --set grid.n=[32,32,32] (repeatable)")
         ->allow_extra_args(false);

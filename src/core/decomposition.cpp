@@ -28,15 +28,17 @@ Decomposition::Decomposition(MPI_Comm comm, const Int3& n, Int3 proc_dims,
         MPI_Dims_create(nranks, 3, proc_dims.data());
     }
     if (proc_dims[0] * proc_dims[1] * proc_dims[2] != nranks)
-        throw Error(fmt::format("process grid {}x{}x{} needs {} ranks, but {} were started",
+        throw Error(fmt::format("process grid {}x{}x{} needs {} ranks, but {} {} started (mpiexec -n {})",
                                 proc_dims[0], proc_dims[1], proc_dims[2],
-                                proc_dims[0] * proc_dims[1] * proc_dims[2], nranks));
+                                proc_dims[0] * proc_dims[1] * proc_dims[2], nranks, nranks == 1 ? "was" : "were",
+                                proc_dims[0] * proc_dims[1] * proc_dims[2]));
     for (int d = 0; d < 3; ++d)
         if (proc_dims[d] > n[d])
             throw Error(fmt::format(
-                "{} ranks along {} but the grid has only {} cells there: some ranks would own "
-                "no cells; run with at most {} ranks or change the process grid",
-                proc_dims[d], "xyz"[d], n[d], nranks / proc_dims[d] * n[d]));
+                "{} ranks along {} but the grid has only {} cell{} there: some ranks would own "
+                "no cells; run with at most {} rank{} or change the process grid",
+                proc_dims[d], "xyz"[d], n[d], n[d] == 1 ? "" : "s", nranks / proc_dims[d] * n[d],
+                nranks / proc_dims[d] * n[d] == 1 ? "" : "s"));
     dims_ = proc_dims;
 
     int periods[3] = {periodic[0], periodic[1], periodic[2]};

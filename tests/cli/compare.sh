@@ -220,9 +220,13 @@ expect_error() {  # expect_error "<grep pattern>" compare-args...
 expect_error "File does not exist: $tmp/missing.h5" "$A" "$tmp/missing.h5"
 expect_error "File does not exist: $tmp/missing.exr" "$A" "$B" --image-a "$tmp/missing.exr" --image-b "$IA"
 expect_error "nimbus: error: compare: give both --image-a and --image-b" "$A" "$B" --image-a "$IA"
-expect_error "nimbus: error: .*grids differ (8x8x6 against 16x16x12)" "$tmp/coarse.h5" "$A"
+expect_error "nimbus: error: .*the grids differ: A '$tmp/coarse.h5' has 8x8x6 cells, B '$A' has 16x16x12" "$tmp/coarse.h5" "$A"
 echo "not HDF5" > "$tmp/text.h5"
-expect_error "nimbus: error: cannot open HDF5 file '$tmp/text.h5'" "$A" "$tmp/text.h5"
+expect_error "nimbus: error: cannot open HDF5 file '$tmp/text.h5': it is not an HDF5 file" "$A" "$tmp/text.h5"
+# A against itself: all zeros, and a warning that this is by construction.
+out=$(nim compare "$A" "$A" 2>&1)
+if [ $? -eq 0 ] && echo "$out" | grep -q "A and B are the same file"; then pass=$((pass + 1)); else
+  fail=$((fail + 1)); echo "FAIL: compare A A gives no same-file warning"; echo "$out" | tail -3; fi
 
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]

@@ -7,6 +7,12 @@ for sub in "" run info compare; do
   out=$("$nimbus" $sub --help 2>&1) || { echo "FAIL: nimbus $sub --help exited non-zero"; fail=$((fail + 1)); continue; }
   if echo "$out" | grep -qi "usage"; then pass=$((pass + 1)); else echo "FAIL: nimbus $sub --help printed no usage"; fail=$((fail + 1)); fi
 done
+# run and info name the models a scene can ask for, and where every key is documented.
+for sub in run info; do
+  out=$("$nimbus" $sub --help 2>&1)
+  if echo "$out" | grep -q "psf (the path-integral blur model), montecarlo (the reference)" && echo "$out" | grep -q "docs/scene_reference.toml"; then
+    pass=$((pass + 1)); else echo "FAIL: nimbus $sub --help does not list the models"; fail=$((fail + 1)); fi
+done
 if [ -n "$scenes" ]; then
   out=$("$nimbus" info "$scenes/dense_cube.toml" 2>&1)
   for want in "48 x 48 x 48" "vertical optical depth max 20" "memory estimate per rank" "optically thick"; do
