@@ -44,16 +44,28 @@ const std::vector<std::string> kModelNames = {"single", "diffusion", "dom", "lpm
 // One line from toml11's multi-line syntax error: "file:line: malformed TOML: what (hint)".
 std::string condense_syntax_error(const toml::exception& e, const std::string& source) {
     std::istringstream lines(e.what());
-    std::string line, first, hint;
+    std::string line, first, hint, code;
+    static const std::regex quoted_line(R"(^\s*\d+\s*\|\s?(.*)$)");  // " 2 | [grid"
     while (std::getline(lines, line)) {
         if (first.empty()) first = line;
         const auto caret = line.find("^---");
         if (caret != std::string::npos) hint = line.substr(caret + 4);
+        std::smatch m;
+        if (code.empty() && std::regex_match(line, m, quoted_line)) code = m[1];
     }
     first = std::regex_replace(first, std::regex(R"(^\[error\]\s*(toml::\w+:\s*)?)"), "");
     hint = std::regex_replace(hint, std::regex(R"(^\s+|\s+$)"), "");
     const auto& loc = e.location();
     const std::string file = loc.file_name() == "unknown file" ? source : loc.file_name();
+    // toml11 calls an unclosed table header "an invalid key": say what is missing.
+    code = std::regex_replace(code, std::regex(R"(^\s+|\s+$)"), "");
+    const bool array_header = code.rfind("[[", 0) == 0;
+    if (array_header ? code.find("]]") == std::string::npos
+                     : !code.empty() && code[0] == '[' && code.find(']') == std::string::npos) {
+        const std::string name = std::regex_replace(code, std::regex(R"(^\[+|\]+$)"), "");
+        return fmt::format("{}:{}: malformed TOML: the table header '{}' is not closed (write '{}')", file,
+                           loc.line(), code, array_header ? "[[" + name + "]]" : "[" + name + "]");
+    }
     return fmt::format("{}:{}: malformed TOML: {}{}", file, loc.line(), first,
                        hint.empty() ? "" : fmt::format(" ({})", hint));
 }

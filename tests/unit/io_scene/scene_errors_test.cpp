@@ -74,6 +74,8 @@ TEST(SceneErrors, MalformedToml) {
     expect_error(text, "cell_size = 1.0.0", {"malformed TOML"});
     const std::string dup = edit("g = 0.5", "g = 0.5\ng = 0.6");
     expect_error(dup, "g = 0.6", {"malformed TOML", "already exists"});
+    expect_error(edit("[grid]", "[grid"), "[grid", {"malformed TOML: the table header '[grid' is not closed (write '[grid]')"});
+    expect_error(edit("[[optics]]", "[[optics]"), "[[optics]", {"the table header '[[optics]' is not closed (write '[[optics]]')"});
 }
 
 TEST(SceneErrors, UnknownKeyListsAllowedKeys) {
