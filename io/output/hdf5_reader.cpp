@@ -3,6 +3,7 @@
 // to double by HDF5 on read.
 #include "io/output/hdf5_reader.h"
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 
@@ -13,6 +14,20 @@ namespace nimbus {
 
 namespace {
 
+// The HDF5 superblock signature, at byte 0 or 512, 1024, 2048, ... (a user block before it).
+bool has_hdf5_signature(std::ifstream& in) {
+    static const char kSignature[8] = {'\x89', 'H', 'D', 'F', '\r', '\n', '\x1a', '\n'};
+    in.seekg(0, std::ios::end);
+    const std::streamoff size = in.tellg();
+    for (std::streamoff at = 0; at + 8 <= size; at = at == 0 ? 512 : 2 * at) {
+        char head[8] = {};
+        in.seekg(at);
+        if (!in.read(head, 8)) return false;
+        if (std::equal(head, head + 8, kSignature)) return true;
+    }
+    return false;
+}
+
 h5::Handle open_file(const std::string& file) {
     h5::QuietErrors quiet;
     h5::Handle f = h5::file_handle(H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT));
@@ -22,9 +37,13 @@ h5::Handle open_file(const std::string& file) {
     const std::filesystem::path p(file);
     if (!std::filesystem::exists(p, ec)) throw Error("cannot open HDF5 file '" + file + "': no such file");
     if (std::filesystem::is_directory(p, ec)) throw Error("cannot open HDF5 file '" + file + "': it is a folder");
-    if (!std::ifstream(file)) throw Error("cannot open HDF5 file '" + file + "': it cannot be read (permissions?)");
-    throw Error("cannot open HDF5 file '" + file + "': it is not an HDF5 file, or it is truncated or damaged "
-                "(nimbus writes <name>.h5; the .xdmf beside it only points into it)");
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw Error("cannot open HDF5 file '" + file + "': it cannot be read (permissions?)");
+    if (!has_hdf5_signature(in))
+        throw Error("cannot open HDF5 file '" + file + "': it is not an HDF5 file (nimbus writes <name>.h5; the "
+                    ".xdmf beside it only points into it)");
+    throw Error("cannot open HDF5 file '" + file + "': HDF5 refuses it: truncated or damaged, or the file "
+                "system does not support HDF5's file locking (then set HDF5_USE_FILE_LOCKING=FALSE)");
 }
 
 std::string located(const std::string& file, const std::string& path) {

@@ -48,7 +48,8 @@ OutputFiles::~OutputFiles() {
 
 std::string OutputFiles::add(const std::string& final_path) {
     files_.emplace_back(final_path + "." + token_ + ".tmp", final_path);
-    interrupt_cleanup::add_file(files_.back().first);  // a signal does not run the destructor
+    // A signal does not run the destructor; rank 0 removes the temporaries, as there.
+    if (rank_of(comm_) == 0) interrupt_cleanup::add_file(files_.back().first);
     return files_.back().first;
 }
 
@@ -67,7 +68,11 @@ void OutputFiles::commit() {
     // the files): without this, rank 0 could rename while another rank still checks them.
     MPI_Barrier(comm_);
     std::string message;
-    if (rank_of(comm_) == 0) message = replace_finals();
+    if (rank_of(comm_) == 0) {
+        const interrupt_cleanup::Deferred hold;  // a signal waits until the renames are done
+        message = replace_finals();
+        if (message.empty()) interrupt_cleanup::clear();  // committed: nothing left to remove
+    }
     check_collective(comm_, message.empty(), message);
 }
 

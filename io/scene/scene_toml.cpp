@@ -58,7 +58,7 @@ std::string condense_syntax_error(const toml::exception& e, const std::string& s
     const auto& loc = e.location();
     const std::string file = loc.file_name() == "unknown file" ? source : loc.file_name();
     // toml11 calls an unclosed table header "an invalid key": say what is missing.
-    code = std::regex_replace(code, std::regex(R"(^\s+|\s+$)"), "");
+    code = std::regex_replace(code.substr(0, code.find('#')), std::regex(R"(^\s+|\s+$)"), "");
     const bool array_header = code.rfind("[[", 0) == 0;
     if (array_header ? code.find("]]") == std::string::npos
                      : !code.empty() && code[0] == '[' && code.find(']') == std::string::npos) {

@@ -1,9 +1,9 @@
 #include "src/core/interrupt_cleanup.h"
 
+#include <signal.h>
 #include <unistd.h>
 
 #include <atomic>
-#include <csignal>
 #include <cstring>
 
 namespace nimbus::interrupt_cleanup {
@@ -15,48 +15,80 @@ struct Entry {
 };
 
 Entry g_entries[kMaxPaths];
-// Entries [0, g_count) are complete: an entry is written before the count that publishes it.
-volatile std::sig_atomic_t g_count = 0;
+// Entries [0, g_count) are complete: an entry is written before the count that publishes it
+// (release), and the handler, on whichever thread the signal lands (MPI's helper threads
+// included), reads the count first (acquire).
+std::atomic<int> g_count{0};
+static_assert(std::atomic<int>::is_always_lock_free, "the signal handler needs a lock-free count");
+
+constexpr int kSignals[] = {SIGINT, SIGTERM, SIGHUP};
+
+// Set while a Deferred exists: the handler then only notes the signal, raised again after.
+std::atomic<int> g_deferring{0}, g_pending{0};
+static_assert(std::atomic<int>::is_always_lock_free);
 
 bool add(const std::string& path, bool folder) {
-    const int n = g_count;
+    const int n = g_count.load(std::memory_order_relaxed);
     if (n >= kMaxPaths || path.empty() || path.size() >= static_cast<size_t>(kMaxPathBytes)) return false;
     std::memcpy(g_entries[n].path, path.c_str(), path.size() + 1);
     g_entries[n].folder = folder;
-    std::atomic_signal_fence(std::memory_order_release);
-    g_count = n + 1;
+    g_count.store(n + 1, std::memory_order_release);
     return true;
 }
 
 void remove_all() {
-    const int n = g_count;
-    std::atomic_signal_fence(std::memory_order_acquire);
+    const int n = g_count.load(std::memory_order_acquire);
     for (int i = n - 1; i >= 0; --i)
         if (!g_entries[i].folder) ::unlink(g_entries[i].path);
     for (int i = n - 1; i >= 0; --i)  // latest (innermost) first; a folder with files stays
         if (g_entries[i].folder) ::rmdir(g_entries[i].path);
 }
 
+// Installed with SA_RESETHAND: the disposition is the default again when this runs, so the
+// raise ends the process by the signal (its exit status says which).
 extern "C" void on_signal(int sig) {
+    if (g_deferring.load(std::memory_order_acquire)) {
+        g_pending.store(sig, std::memory_order_release);
+        return;
+    }
     remove_all();
-    std::signal(sig, SIG_DFL);
-    std::raise(sig);
+    ::raise(sig);
 }
 
 }  // namespace
 
 void install() {
-    for (int sig : {SIGINT, SIGTERM, SIGHUP}) std::signal(sig, on_signal);
+    for (int sig : kSignals) {
+        struct sigaction old {};
+        // A signal the process was started with ignored stays ignored (nohup's SIGHUP, the
+        // SIGINT of a background job of a non-interactive shell): the user chose that.
+        if (::sigaction(sig, nullptr, &old) == 0 && old.sa_handler == SIG_IGN) continue;
+        struct sigaction sa {};
+        sa.sa_handler = on_signal;
+        sigemptyset(&sa.sa_mask);
+        for (int other : kSignals) sigaddset(&sa.sa_mask, other);  // one cleanup at a time
+        sa.sa_flags = SA_RESETHAND;
+        ::sigaction(sig, &sa, nullptr);
+    }
 }
 
 bool add_file(const std::string& path) { return add(path, false); }
 bool add_folder(const std::string& path) { return add(path, true); }
 
-void clear() { g_count = 0; }
+void clear() { g_count.store(0, std::memory_order_release); }
 
-void remove_registered() {
-    remove_all();
-    clear();
+// A signal process-directed (kill, mpiexec) may land on any thread, so masking this one would
+// not hold it back: the handler checks the flag instead.
+Deferred::Deferred() { g_deferring.store(1, std::memory_order_release); }
+
+Deferred::~Deferred() {
+    g_deferring.store(0, std::memory_order_release);
+    // The handler was reset to the default when the signal came (SA_RESETHAND): this ends the
+    // process by it, with whatever is still registered removed first.
+    if (const int sig = g_pending.exchange(0)) {
+        remove_all();
+        ::raise(sig);
+    }
 }
 
 }  // namespace nimbus::interrupt_cleanup

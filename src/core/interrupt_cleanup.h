@@ -9,8 +9,9 @@
 //   interrupt_cleanup::add_folder("out");         // removed only if empty, after the files
 //   interrupt_cleanup::clear();                   // committed: nothing to remove any more
 //
-// The handler only calls unlink(2), rmdir(2), signal(2) and raise(3), which are
-// async-signal-safe; then the signal takes its default action (the exit status says so).
+// The handler only calls unlink(2), rmdir(2) and raise(3), which are async-signal-safe; then
+// the signal takes its default action (the exit status says so). A signal the process was
+// started with ignored (nohup) stays ignored.
 // Paths are kept in a fixed table (kMaxPaths of kMaxPathBytes); beyond it they are not
 // registered (add_* returns false) and a signal leaves them behind. Not thread-safe: call from
 // the thread that runs the pipeline.
@@ -27,8 +28,16 @@ void install();
 bool add_file(const std::string& path);
 bool add_folder(const std::string& path);
 void clear();
-// Removes what is registered, as the handler would (files, then folders, latest first).
-// For tests, and for callers that must clean up without a signal.
-void remove_registered();
+
+// While one exists, a handled signal is only noted, and acted on (cleanup, then the default
+// action) when it is destroyed: for the renames that replace a previous run's files, which must
+// not be cut between moving the old files aside and putting the new ones in place.
+class Deferred {
+public:
+    Deferred();
+    ~Deferred();
+    Deferred(const Deferred&) = delete;
+    Deferred& operator=(const Deferred&) = delete;
+};
 
 }  // namespace nimbus::interrupt_cleanup

@@ -43,6 +43,7 @@ public:
     ~CreatedFolders() {
         std::error_code ec;
         for (auto it = created_.rbegin(); it != created_.rend(); ++it) fs::remove(*it, ec);
+        interrupt_cleanup::clear();  // cleaned up (or committed) already
     }
 
 private:
@@ -126,8 +127,9 @@ void log_scene(const Scene& s, const Decomposition& d, const ScatteringModel& mo
     if (!opts.empty()) log::info("model options: {}", opts.dump());
 }
 
-// A scene that runs but shows nothing: every fluence is zero. Legal (a test of the background,
-// an absorption-only render), so a warning, not an error; said once, by rank 0.
+// A scene that runs but shows nothing: no medium, or no light for a render mode that shows
+// scattered light (absorption and emission modes need none). Legal, so a warning, not an
+// error; said once, by rank 0.
 void warn_if_dark(const Scene& scene, const Decomposition& d, const Medium& medium,
                   const std::vector<DirectionalLight>& lights) {
     std::int64_t filled = 0;
@@ -141,7 +143,7 @@ void warn_if_dark(const Scene& scene, const Decomposition& d, const Medium& medi
     if (filled == 0)
         log::warn("the medium has no non-empty cells (density 0 everywhere): nothing scatters, fluence_diffuse "
                   "is zero and the image shows the background (check medium.density and medium.kind)");
-    else if (!lit)
+    else if (!lit && (scene.render.mode == RenderMode::scattering || scene.render.mode == RenderMode::single_unshadowed))
         log::warn("the scene has no light: the sun is off or has zero irradiance, there is no sky and no "
                   "[[sources]] emit, so every fluence is zero (check sun.enabled, sun.irradiance, sky.radiance)");
 }

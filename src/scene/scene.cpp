@@ -155,7 +155,7 @@ void Scene::validate() const {
                         medium.density, std::numeric_limits<float>::max()));
     for (const auto& o : bands)
         require(medium.density * o.sigma_t * grid.h() <= kFloatMax,
-                fmt::format("medium.density x optics band '{}' sigma_t x grid.cell_size = {:.3g}: a cell's optical "
+                fmt::format("medium.density x optics band '{}' sigma_t x the cell size in m = {:.3g}: a cell's optical "
                             "thickness is beyond single precision ({:.3g})",
                             o.name, medium.density * o.sigma_t * grid.h(), kFloatMax));
     if (sun.enabled) {

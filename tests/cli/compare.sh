@@ -223,6 +223,8 @@ expect_error "nimbus: error: compare: give both --image-a and --image-b" "$A" "$
 expect_error "nimbus: error: .*the grids differ: A '$tmp/coarse.h5' has 8x8x6 cells, B '$A' has 16x16x12" "$tmp/coarse.h5" "$A"
 echo "not HDF5" > "$tmp/text.h5"
 expect_error "nimbus: error: cannot open HDF5 file '$tmp/text.h5': it is not an HDF5 file" "$A" "$tmp/text.h5"
+head -c 2000 "$A" > "$tmp/truncated.h5"
+expect_error "nimbus: error: cannot open HDF5 file '$tmp/truncated.h5': HDF5 refuses it: truncated or damaged" "$A" "$tmp/truncated.h5"
 # A against itself: all zeros, and a warning that this is by construction.
 out=$(nim compare "$A" "$A" 2>&1)
 if [ $? -eq 0 ] && echo "$out" | grep -q "A and B are the same file"; then pass=$((pass + 1)); else

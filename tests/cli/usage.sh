@@ -117,17 +117,32 @@ check "run: no medium warns" 0 "\[warning\] the medium has no non-empty cells" r
 
 # An interrupted run (Ctrl-C, SIGTERM from a batch system) leaves no temporary and removes the
 # folders it created, like a failed run: wait until the run has made its output folder, then
-# interrupt it during its (long) Monte Carlo phase.
+# interrupt it during its (long) Monte Carlo phase. A background job of a script starts with
+# SIGINT ignored, and nimbus keeps an ignored signal ignored (nohup): env gives it back.
 for sig in INT TERM; do
-  "$nimbus" run "${small[@]}" --set model.montecarlo.photons=2000000000 --out "$tmp/killed_$sig/sub" > "$tmp/killed.log" 2>&1 &
+  env --default-signal=INT,TERM "$nimbus" run "${small[@]}" --set 'model.name="montecarlo"' \
+      --set model.montecarlo.photons=2000000000 --out "$tmp/killed_$sig/sub" > "$tmp/killed.log" 2>&1 &
   pid=$!
   for _ in $(seq 300); do [ -d "$tmp/killed_$sig/sub" ] && break; sleep 0.1; done
   made=no; [ -d "$tmp/killed_$sig/sub" ] && made=yes
   sleep 0.5
-  kill -s "$sig" "$pid"; wait "$pid"; code=$?
-  if [ "$made" = yes ] && [ "$code" -ne 0 ] && [ ! -e "$tmp/killed_$sig" ]; then pass=$((pass + 1)); else
-    fail=$((fail + 1)); echo "FAIL: SIG$sig: folder made $made, exit $code, left behind:"; find "$tmp/killed_$sig" 2>&1 | head -5; tail -3 "$tmp/killed.log"; fi
+  kill -s "$sig" "$pid"
+  for _ in $(seq 200); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
+  ended=yes; if kill -0 "$pid" 2>/dev/null; then ended=no; kill -KILL "$pid"; fi
+  wait "$pid"; code=$?
+  if [ "$made" = yes ] && [ "$ended" = yes ] && [ "$code" -eq $((128 + $(kill -l "$sig"))) ] && [ ! -e "$tmp/killed_$sig" ]; then
+    pass=$((pass + 1)); else
+    fail=$((fail + 1)); echo "FAIL: SIG$sig: folder made $made, ended by the signal $ended, exit $code, left behind:"
+    find "$tmp/killed_$sig" 2>&1 | head -5; tail -3 "$tmp/killed.log"; fi
 done
+# A signal the run was started with ignored stays ignored (nohup): the run goes on.
+env --ignore-signal=HUP "$nimbus" run "${small[@]}" --set 'model.name="montecarlo"' \
+    --set model.montecarlo.photons=2000000000 --out "$tmp/nohup" > /dev/null 2>&1 &
+pid=$!
+for _ in $(seq 300); do [ -d "$tmp/nohup" ] && break; sleep 0.1; done
+sleep 0.5; kill -HUP "$pid"; sleep 1
+if kill -0 "$pid" 2>/dev/null && [ -d "$tmp/nohup" ]; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: an ignored SIGHUP ended the run"; fi
+kill -KILL "$pid" 2>/dev/null; wait "$pid" 2>/dev/null
 
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]

@@ -75,6 +75,7 @@ TEST(SceneErrors, MalformedToml) {
     const std::string dup = edit("g = 0.5", "g = 0.5\ng = 0.6");
     expect_error(dup, "g = 0.6", {"malformed TOML", "already exists"});
     expect_error(edit("[grid]", "[grid"), "[grid", {"malformed TOML: the table header '[grid' is not closed (write '[grid]')"});
+    expect_error(edit("[grid]", "[grid # the grid"), "[grid", {"the table header '[grid' is not closed (write '[grid]')"});
     expect_error(edit("[[optics]]", "[[optics]"), "[[optics]", {"the table header '[[optics]' is not closed (write '[[optics]]')"});
 }
 
@@ -315,7 +316,7 @@ TEST(SceneErrors, NumbersBeyondSinglePrecisionScale) {
     std::string thick = edit("density = 1.0", "density = 1e30");
     thick.replace(thick.find("cell_size = 1.0"), 15, "cell_size = 1e10");
     expect_error(thick, "density = 1e30",
-                 {"medium.density x optics band 'gray' sigma_t x grid.cell_size = 1e+40", "optical thickness"});
+                 {"medium.density x optics band 'gray' sigma_t x the cell size in m = 1e+40", "optical thickness"});
     expect_error(edit("", "[sun]\nirradiance = 1e300"), "irradiance",
                  {"sun.irradiance = 1e+300 is beyond single precision"});
     expect_error(edit("", "[sky]\nradiance = 1e39"), "radiance", {"sky.radiance = 1e+39 is beyond single precision"});

@@ -1,0 +1,118 @@
+// interrupt_cleanup: a handled signal removes the registered temporaries and (empty) folders and
+// ends the process by that signal; inside a Deferred it waits until the Deferred ends. Each case
+// runs in a forked child (no MPI there: it only registers, signals itself and dies), so the
+// test process keeps its own signal dispositions.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "src/core/interrupt_cleanup.h"
+
+namespace nimbus {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A fresh folder holding one file, both to be registered by the child.
+struct Scratch {
+    fs::path dir, file, kept;
+    explicit Scratch(const std::string& name) {
+        dir = fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()));
+        fs::remove_all(dir);
+        fs::create_directories(dir / "made");
+        file = dir / "made" / "out.h5.tmp";
+        kept = dir / "previous.h5";  // a file the run did not make: never touched
+        std::ofstream(file) << "partial";
+        std::ofstream(kept) << "old run";
+    }
+    ~Scratch() { fs::remove_all(dir); }
+};
+
+// Runs `child` in a forked process; returns its wait status.
+template <class F>
+int in_child(F&& child) {
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+        child();
+        ::_exit(0);
+    }
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    return status;
+}
+
+TEST(InterruptCleanup, SignalRemovesRegisteredPathsAndEndsByIt) {
+    for (int sig : {SIGINT, SIGTERM, SIGHUP}) {
+        Scratch s("nimbus_interrupt");
+        const int status = in_child([&] {
+            ::signal(sig, SIG_DFL);
+            interrupt_cleanup::install();
+            interrupt_cleanup::add_folder((s.dir / "made").string());
+            interrupt_cleanup::add_file(s.file.string());
+            ::raise(sig);
+            ::_exit(3);  // not reached when the signal ends the process
+        });
+        ASSERT_TRUE(WIFSIGNALED(status)) << "signal " << sig << ", status " << status;
+        EXPECT_EQ(WTERMSIG(status), sig);
+        EXPECT_FALSE(fs::exists(s.file)) << sig;
+        EXPECT_FALSE(fs::exists(s.dir / "made")) << sig;
+        EXPECT_TRUE(fs::exists(s.kept)) << sig;
+    }
+}
+
+TEST(InterruptCleanup, ClearedPathsStay) {
+    Scratch s("nimbus_interrupt_clear");
+    const int status = in_child([&] {
+        ::signal(SIGTERM, SIG_DFL);
+        interrupt_cleanup::install();
+        interrupt_cleanup::add_folder((s.dir / "made").string());
+        interrupt_cleanup::add_file(s.file.string());
+        interrupt_cleanup::clear();  // committed
+        ::raise(SIGTERM);
+    });
+    ASSERT_TRUE(WIFSIGNALED(status));
+    EXPECT_TRUE(fs::exists(s.file));
+}
+
+TEST(InterruptCleanup, DeferredHoldsTheSignalUntilItEnds) {
+    Scratch s("nimbus_interrupt_deferred");
+    const fs::path marker = s.dir / "after_raise";
+    const int status = in_child([&] {
+        ::signal(SIGTERM, SIG_DFL);
+        interrupt_cleanup::install();
+        interrupt_cleanup::add_file(s.file.string());
+        {
+            const interrupt_cleanup::Deferred hold;
+            ::raise(SIGTERM);
+            // Still alive, nothing removed yet: the renames of a commit would run here.
+            if (fs::exists(s.file)) std::ofstream(marker) << "held";
+        }
+        ::_exit(3);  // not reached: the held signal ends the process when the Deferred ends
+    });
+    ASSERT_TRUE(WIFSIGNALED(status)) << status;
+    EXPECT_EQ(WTERMSIG(status), SIGTERM);
+    EXPECT_TRUE(fs::exists(marker)) << "the signal was not held";
+    EXPECT_FALSE(fs::exists(s.file)) << "the held signal did not clean up";
+}
+
+TEST(InterruptCleanup, IgnoredSignalStaysIgnored) {
+    Scratch s("nimbus_interrupt_ignored");
+    const int status = in_child([&] {
+        ::signal(SIGHUP, SIG_IGN);  // nohup
+        interrupt_cleanup::install();
+        interrupt_cleanup::add_file(s.file.string());
+        ::raise(SIGHUP);
+        ::_exit(7);
+    });
+    ASSERT_TRUE(WIFEXITED(status)) << status;
+    EXPECT_EQ(WEXITSTATUS(status), 7);
+    EXPECT_TRUE(fs::exists(s.file));
+}
+
+}  // namespace
+}  // namespace nimbus
