@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <new>
+#include <optional>
 #include <utility>
 
 #include "io/scene/density_import.h"
@@ -37,32 +38,78 @@ void say(MPI_Comm comm, fmt::format_string<Args...> f, Args&&... a) {
     std::fflush(stdout);
 }
 
-void info(const RunOptions& opts) {
+// The decomposition `ranks` ranks would have, seen from the rank with the largest box (the one
+// whose memory matters), planned without those ranks (info --ranks N).
+Decomposition plan_for(const Scene& s, int ranks) {
+    const Decomposition any = Decomposition::plan(s.grid.n, ranks, s.grid.process_grid, s.grid.periodic);
+    int largest = 0;
+    for (int p = 1; p < ranks; ++p)
+        if (any.box_of(p).cells() > any.box_of(largest).cells()) largest = p;
+    return Decomposition::plan(s.grid.n, ranks, s.grid.process_grid, s.grid.periodic, largest);
+}
+
+void info(const RunOptions& opts, int plan_ranks) {
     if (!opts.out_dir.empty()) throw Error("--out: info writes no files (--out is an option of nimbus run)");
     MPI_Comm comm = MPI_COMM_WORLD;
+    int size = 1;
+    MPI_Comm_size(comm, &size);
+    if (plan_ranks > 0 && size > 1 && plan_ranks != size)
+        throw Error(fmt::format("--ranks {} plans a run from one process, but {} ranks were started: run `nimbus "
+                                "info --ranks {}` without mpiexec, or `mpiexec -n {} nimbus info`",
+                                plan_ranks, size, plan_ranks, plan_ranks));
+    const bool planning = plan_ranks > 0 && plan_ranks != size;
     const Scene s = load_run_scene(comm, opts);
     run_collective(comm, [&] { make_model(s.model); });  // as a run: is the model in this build?
-    const Decomposition d(comm, s.grid.n, s.grid.process_grid, s.grid.periodic);
+    // Planning, the density is built on this one process (its process grid is 1x1x1) and the
+    // ranks' layout and memory are the plan's.
+    const Decomposition d(comm, s.grid.n, planning ? Int3{0, 0, 0} : s.grid.process_grid, s.grid.periodic);
+    const std::optional<Decomposition> plan = planning ? std::optional(plan_for(s, plan_ranks)) : std::nullopt;
+    const Decomposition& layout = plan ? *plan : d;
     const auto lights = make_lights(s);
-    const MemoryEstimate mem = estimate_memory(s, d);
+    const MemoryEstimate mem = estimate_memory(s, layout);
     const auto say_grid = [&] {
         say(comm, "scene: {} ({})", s.title, s.source);
         say(comm, "grid: {} x {} x {} = {} cells, cell {} m, domain {:.4g} x {:.4g} x {:.4g} m", s.grid.n[0],
                   s.grid.n[1], s.grid.n[2], d.global().cells(), s.grid.h(), s.grid.n[0] * s.grid.h(),
                   s.grid.n[1] * s.grid.h(), s.grid.n[2] * s.grid.h());
-        long long largest = 0;
-        for (int p = 0; p < d.size(); ++p) largest = std::max(largest, static_cast<long long>(d.box_of(p).cells()));
-        say(comm, "decomposition: {}; largest rank box {} cells", d.describe(), largest);
+        say(comm, "decomposition{}: {}; largest rank box {} cells", plan ? " (planned with --ranks)" : "",
+            layout.describe(), plan ? plan->local().cells() : [&] {
+                long long largest = 0;
+                for (int p = 0; p < d.size(); ++p)
+                    largest = std::max(largest, static_cast<long long>(d.box_of(p).cells()));
+                return largest;
+            }());
     };
+    // The rank with the largest box needs the most: its figure is the one to plan with.
+    double most = mem.bytes;
+    MPI_Allreduce(MPI_IN_PLACE, &most, 1, MPI_DOUBLE, MPI_MAX, comm);
     const auto say_memory = [&] {
-        say(comm, "memory estimate per rank ({}): {:.1f} MiB", mem.what, mem.bytes / (1 << 20));
+        say(comm, "memory estimate per rank ({}): {:.1f} MiB{}", mem.what, most / (1 << 20),
+            plan ? fmt::format("; {:.2f} GiB for the {} ranks together", mem.bytes * plan_ranks / (1 << 30),
+                               plan_ranks)
+                 : std::string());
     };
+    // Planned ranks run elsewhere (other nodes): this node's memory says nothing about them. But
+    // the description of the medium builds the whole density here; a grid planned for many
+    // ranks may not fit on this one: the plan is then the whole description.
     try {
-        check_memory_fits(comm, mem);
+        if (!plan) check_memory_fits(comm, mem);
     } catch (const Error&) {
         say_grid();
         say_memory();
         throw;
+    }
+    if (plan) {
+        try {
+            check_memory_fits(comm, estimate_memory(s, d));
+        } catch (const Error&) {
+            say_grid();
+            say_memory();
+            say(comm, "medium: not described: its optical depths need the whole density on this one process, "
+                      "which does not fit here (run `mpiexec -n {} nimbus info` on the machine for the run)",
+                plan_ranks);
+            return;
+        }
     }
     // The density as a run builds it (allocated collectively: no rank is left waiting when
     // another runs out of memory), checked like a run's.
@@ -134,6 +181,10 @@ void info(const RunOptions& opts) {
                              s.sources.size(), tau < 0.3 ? "thin" : tau < 3 ? "intermediate" : "thick");
     say(comm, "models in this build: {}; this scene is {}", fmt::format("{}", fmt::join(available_models(), ", ")), advice);
     say(comm, "model asked for: '{}'", s.model.name);
+    if (plan)
+        say(comm, "planned for {} ranks from one process: the checks that depend on how the ranks split the "
+                  "grid (the light method on an x or y split, dom on a periodic split axis) are made by "
+                  "`mpiexec -n {} nimbus info`", plan_ranks, plan_ranks);
 }
 
 }  // namespace
@@ -147,7 +198,12 @@ void add_info_command(CLI::App& app) {
         ->allow_extra_args(false);
     // `run`'s --out given to info: said so by info(), rather than its folder taken for the scene.
     cmd->add_option("--out", opts->out_dir, "not an option of info")->group("");
-    cmd->callback([opts] { info(*opts); });
+    auto ranks = std::make_shared<int>(0);
+    cmd->add_option("--ranks", *ranks,
+                    "plan a run on N ranks from one process (no mpiexec): the decomposition and the memory "
+                    "per rank of an N-rank run")
+        ->check(CLI::Range(1, 1 << 24));
+    cmd->callback([opts, ranks] { info(*opts, *ranks); });
 }
 
 }  // namespace nimbus::cmd

@@ -8,13 +8,12 @@
 
 namespace nimbus {
 
-Decomposition::Decomposition(MPI_Comm comm, const Int3& n, Int3 proc_dims,
-                             std::array<bool, 3> periodic)
-    : global_{{0, 0, 0}, n}, periodic_(periodic) {
-    int nranks = 1;
-    MPI_Comm_size(comm, &nranks);
+// The process grid for nranks: proc_dims with its 0 entries filled (all zeros: slabs along z),
+// checked against the rank count and the grid. planned: nranks is `info --ranks`, not mpiexec.
+Int3 Decomposition::choose_dims(const Int3& n, int nranks, Int3 proc_dims, bool planned) {
     if (n[0] <= 0 || n[1] <= 0 || n[2] <= 0)
         throw Error(fmt::format("grid has zero size ({} x {} x {} cells)", n[0], n[1], n[2]));
+    if (nranks < 1) throw Error(fmt::format("a run needs at least 1 rank, not {}", nranks));
     if (proc_dims == Int3{0, 0, 0}) proc_dims = {1, 1, 0};
     int fixed = 1, free_axes = 0;
     for (int d = 0; d < 3; ++d) {
@@ -25,13 +24,15 @@ Decomposition::Decomposition(MPI_Comm comm, const Int3& n, Int3 proc_dims,
         if (nranks % fixed != 0)
             throw Error(fmt::format("process grid {}x{}x{} does not divide {} ranks",
                                     proc_dims[0], proc_dims[1], proc_dims[2], nranks));
-        MPI_Dims_create(nranks, 3, proc_dims.data());
+        MPI_Dims_create(nranks, 3, proc_dims.data());  // local: no communication
     }
-    if (proc_dims[0] * proc_dims[1] * proc_dims[2] != nranks)
-        throw Error(fmt::format("process grid {}x{}x{} needs {} ranks, but {} {} started (mpiexec -n {})",
-                                proc_dims[0], proc_dims[1], proc_dims[2],
-                                proc_dims[0] * proc_dims[1] * proc_dims[2], nranks, nranks == 1 ? "was" : "were",
-                                proc_dims[0] * proc_dims[1] * proc_dims[2]));
+    const int needed = proc_dims[0] * proc_dims[1] * proc_dims[2];
+    if (needed != nranks)
+        throw Error(planned ? fmt::format("process grid {}x{}x{} needs {} ranks, not the {} of --ranks",
+                                          proc_dims[0], proc_dims[1], proc_dims[2], needed, nranks)
+                            : fmt::format("process grid {}x{}x{} needs {} ranks, but {} {} started (mpiexec -n {})",
+                                          proc_dims[0], proc_dims[1], proc_dims[2], needed, nranks,
+                                          nranks == 1 ? "was" : "were", needed));
     for (int d = 0; d < 3; ++d)
         if (proc_dims[d] > n[d])
             throw Error(fmt::format(
@@ -39,7 +40,15 @@ Decomposition::Decomposition(MPI_Comm comm, const Int3& n, Int3 proc_dims,
                 "no cells; run with at most {} rank{} or change the process grid",
                 proc_dims[d], "xyz"[d], n[d], n[d] == 1 ? "" : "s", nranks / proc_dims[d] * n[d],
                 nranks / proc_dims[d] * n[d] == 1 ? "" : "s"));
-    dims_ = proc_dims;
+    return proc_dims;
+}
+
+Decomposition::Decomposition(MPI_Comm comm, const Int3& n, Int3 proc_dims,
+                             std::array<bool, 3> periodic)
+    : global_{{0, 0, 0}, n}, periodic_(periodic) {
+    int nranks = 1;
+    MPI_Comm_size(comm, &nranks);
+    dims_ = choose_dims(n, nranks, proc_dims, false);
 
     int periods[3] = {periodic[0], periodic[1], periodic[2]};
     MPI_Comm cart = MPI_COMM_NULL;
@@ -56,9 +65,29 @@ Decomposition::Decomposition(MPI_Comm comm, const Int3& n, Int3 proc_dims,
     local_ = box_of(rank_);
 }
 
+Decomposition Decomposition::plan(const Int3& n, int nranks, Int3 proc_dims, std::array<bool, 3> periodic,
+                                  int as_rank) {
+    Decomposition out;
+    out.global_ = {{0, 0, 0}, n};
+    out.periodic_ = periodic;
+    out.dims_ = choose_dims(n, nranks, proc_dims, true);
+    if (as_rank < 0 || as_rank >= nranks) throw Error(fmt::format("rank {} is not one of {} ranks", as_rank, nranks));
+    out.comm_ = std::make_shared<MPI_Comm>(MPI_COMM_NULL);
+    out.rank_ = as_rank;
+    out.size_ = nranks;
+    out.coords_ = out.coords_of(as_rank);
+    out.local_ = out.box_of(as_rank);
+    return out;
+}
+
+// MPI numbers the ranks of a Cartesian grid in row-major order (z fastest), and the grid is
+// created without reordering, so the coordinates follow from the rank alone.
+Int3 Decomposition::coords_of(int r) const {
+    return {r / (dims_[1] * dims_[2]), r / dims_[2] % dims_[1], r % dims_[2]};
+}
+
 Box Decomposition::box_of(int r) const {
-    Int3 c{};
-    MPI_Cart_coords(*comm_, r, 3, c.data());
+    const Int3 c = coords_of(r);
     Box b;
     for (int d = 0; d < 3; ++d) {
         const std::vector<int>& cut = cuts_[static_cast<size_t>(d)];

@@ -21,6 +21,13 @@ public:
     Decomposition(MPI_Comm comm, const Int3& global_cells, Int3 proc_dims = {0, 0, 0},
                   std::array<bool, 3> periodic = {false, false, false});
 
+    // The decomposition nranks ranks would have, seen from rank as_rank, without MPI ranks or
+    // communication (`nimbus info --ranks N` plans a run with it): the same process grid and
+    // boxes as the constructor's, and the same errors; comm() is MPI_COMM_NULL, so neighbor()
+    // and anything collective must not be used on it.
+    static Decomposition plan(const Int3& global_cells, int nranks, Int3 proc_dims = {0, 0, 0},
+                              std::array<bool, 3> periodic = {false, false, false}, int as_rank = 0);
+
     MPI_Comm comm() const { return *comm_; }
     int rank() const { return rank_; }
     int size() const { return size_; }
@@ -58,6 +65,9 @@ public:
     int thinnest(int axis) const;
 
 private:
+    Decomposition() = default;
+    static Int3 choose_dims(const Int3& n, int nranks, Int3 proc_dims, bool planned);
+    Int3 coords_of(int rank) const;
 
     std::shared_ptr<MPI_Comm> comm_;
     int rank_ = 0, size_ = 1;

@@ -30,5 +30,25 @@ if [ "$np" -eq 2 ]; then
   if echo "$out" | grep -q "largest rank box 16384 cells"; then pass=$((pass + 1)); else
     fail=$((fail + 1)); echo "FAIL: largest rank box"; echo "$out" | grep decomposition; fi
 fi
+# info --ranks N on one process plans what mpiexec -n N gives: the same decomposition and memory
+# lines (the largest box's), for z slabs and an x split, and refuses --ranks under other ranks.
+plan_lines() { grep -E "^(decomposition|memory estimate)" | sed -e 's/ (planned with --ranks)//' -e 's/; [0-9.]* GiB for the .*//'; }
+for pg in "[1,1,$np]" "[$np,1,1]"; do
+  args=("$scenes/smoke.toml" --set "grid.n=[32,32,31]" --set "grid.process_grid=$pg" --set 'light.method="exact"')
+  real=$(timeout 120 "$mpiexec" -n "$np" "$nimbus" info "${args[@]}" 2>/dev/null | plan_lines)
+  planned=$(timeout 120 "$nimbus" info "${args[@]}" --ranks "$np" 2>/dev/null | plan_lines)
+  if [ -n "$real" ] && [ "$real" = "$planned" ]; then pass=$((pass + 1)); else
+    fail=$((fail + 1)); echo "FAIL: info --ranks $np differs from mpiexec -n $np (process grid $pg)"; diff <(echo "$real") <(echo "$planned"); fi
+done
+if [ "$np" -gt 1 ]; then
+  out=$(timeout 120 "$mpiexec" -n "$np" "$nimbus" info --ranks $((np + 1)) 2>&1); status=$?
+  if [ $status -ne 0 ] && echo "$out" | grep -q "plans a run from one process, but $np ranks were started"; then pass=$((pass + 1)); else
+    fail=$((fail + 1)); echo "FAIL: --ranks under mpiexec with another count"; echo "$out" | head -3; fi
+fi
+# A grid planned for many ranks that this process cannot hold: the plan, and the medium not described.
+out=$(timeout 120 "$nimbus" info --ranks 4096 --set "grid.n=[4096,4096,4096]" --set 'model.name="dom"' 2>&1); status=$?
+if [ $status -eq 0 ] && echo "$out" | grep -q "4096 ranks as 1x1x4096" && echo "$out" | grep -q "for the 4096 ranks together" \
+   && echo "$out" | grep -q "^medium: not described"; then pass=$((pass + 1)); else
+  fail=$((fail + 1)); echo "FAIL: info --ranks 4096 of a 4096^3 grid (exit $status)"; echo "$out" | tail -3; fi
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]

@@ -24,6 +24,52 @@ TEST(Decomposition, DefaultIsSlabsAlongZAndBoxesPartitionTheGrid) {
     EXPECT_EQ(d.local(), d.box_of(d.rank()));
 }
 
+// A planned decomposition (info --ranks) is the one the ranks build: same process grid, and for
+// every rank the same coordinates (MPI_Cart_coords against row-major arithmetic) and box.
+TEST(Decomposition, PlanEqualsTheRanksDecomposition) {
+    const int P = test::world_size();
+    const Int3 n{11, 10, 9};
+    for (const Int3 pg : {Int3{0, 0, 0}, Int3{P, 1, 1}, Int3{1, P, 1}, Int3{1, 1, 0}}) {
+        const Decomposition real(MPI_COMM_WORLD, n, pg, {true, false, false});
+        for (int r = 0; r < P; ++r) {
+            const Decomposition plan = Decomposition::plan(n, P, pg, {true, false, false}, r);
+            EXPECT_EQ(plan.dims(), real.dims());
+            EXPECT_EQ(plan.local(), real.box_of(r));
+            EXPECT_EQ(plan.size(), P);
+            EXPECT_TRUE(plan.periodic(0));
+            if (r == real.rank()) {
+                EXPECT_EQ(plan.coords(), real.coords());  // real's from MPI_Cart_coords
+            }
+        }
+    }
+}
+
+// Planning for more ranks than are running: boxes of every rank partition the grid, and the
+// refusals are the constructor's, naming --ranks.
+TEST(Decomposition, PlanForManyRanksPartitionsTheGrid) {
+    const Int3 n{40, 30, 20};
+    for (const Int3 pg : {Int3{0, 0, 0}, Int3{2, 0, 0}, Int3{3, 2, 2}}) {
+        const Decomposition d = Decomposition::plan(n, 12, pg);
+        EXPECT_EQ(d.dims()[0] * d.dims()[1] * d.dims()[2], 12);
+        std::int64_t total = 0;
+        for (int r = 0; r < 12; ++r) {
+            const Box b = d.box_of(r);
+            total += b.cells();
+            for (int q = r + 1; q < 12; ++q) EXPECT_TRUE(b.intersect(d.box_of(q)).empty()) << r << " " << q;
+        }
+        EXPECT_EQ(total, 40 * 30 * 20);
+    }
+    EXPECT_EQ(Decomposition::plan(n, 12).comm(), MPI_COMM_NULL);
+    try {
+        Decomposition::plan(n, 4, {3, 1, 1});
+        ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+        EXPECT_STREQ(e.what(), "process grid 3x1x1 needs 3 ranks, not the 4 of --ranks");
+    }
+    EXPECT_THROW(Decomposition::plan(n, 21), Error);  // 21 slabs of a 20-layer grid
+    EXPECT_THROW(Decomposition::plan(n, 4, {0, 0, 0}, {false, false, false}, 4), Error);  // no rank 4
+}
+
 TEST(Decomposition, RefusesRanksWithoutCells) {
     // One z layer cannot be split over 2 ranks; on 1 rank the grid is fine.
     if (test::world_size() == 1) {
