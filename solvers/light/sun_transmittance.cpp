@@ -27,9 +27,10 @@ struct Stencil {
     std::array<Tap, 4> taps;
 };
 
-// m: the axis whose upwind layer the segment starts from. Normally the dominant axis of w
-// (then |offsets| <= 1); with periodic x/y it is z, and the upwind point may lie several cells
-// away along x/y (f > 1), which periodic wrapping makes available.
+// m: the axis whose upwind layer the segment starts from (segment_axis). Normally the dominant
+// axis of w (then |offsets| <= 1); with a periodic axis, the dominant one of the non-periodic
+// axes, and the upwind point may lie several cells away along the periodic axes (f > 1), which
+// periodic wrapping makes available.
 Stencil make_stencil(const Vec3& w, double h, int m) {
     Stencil st;
     const double wm = std::abs(w[m]);
@@ -69,9 +70,14 @@ Stencil make_stencil(const Vec3& w, double h, int m) {
     return st;
 }
 
-int dominant_axis(const Vec3& w) {
-    int m = 0;
-    for (int a = 1; a < 3; ++a) if (std::abs(w[a]) > std::abs(w[m])) m = a;
+// The axis the segments start from: the one of largest |w_a| among the non-periodic axes. A
+// periodic axis has no inflow face to start the sweep from; along the other non-periodic axes
+// the offsets then stay within one cell (the ghost layer; z is split over the slab chain).
+// Along periodic x/y (never split) they may be several cells, wrapped.
+int segment_axis(const Decomposition& d, const Vec3& w) {
+    int m = -1;
+    for (int a = 0; a < 3; ++a)
+        if (!d.periodic(a) && (m < 0 || std::abs(w[a]) > std::abs(w[m]))) m = a;
     return m;
 }
 
@@ -254,13 +260,16 @@ LightTransport compute_light_transport(const Decomposition& d, const Medium& m,
     lt.lights = lights;
     const Int3 n = d.global().hi;
     double wait = 0;
+    int passes = 1;  // the most sweeps any light took
     Progress progress("light pass", static_cast<double>(lights.size()), d.rank() == 0);
     for (const auto& light : lights) {
         const bool periodic_xy = d.periodic(0) || d.periodic(1);
-        if (periodic_xy && std::abs(light.w.z) < 1e-3)
-            throw Error(fmt::format("light '{}' is horizontal: with periodic x/y boundaries it never "
-                                    "leaves the domain", light.name));
-        const Stencil st = make_stencil(light.w, m.grid.h, periodic_xy ? 2 : dominant_axis(light.w));
+        const int seg_axis = segment_axis(d, light.w);  // z is never periodic for a non-horizontal light here
+        if (periodic_xy && std::abs(light.w[seg_axis]) < 1e-3)
+            throw Error(fmt::format("light '{}' runs along the periodic axes (direction [{:.3g}, {:.3g}, {:.3g}]): "
+                                    "the sweep needs it to cross a non-periodic axis; use light.method = \"exact\"",
+                                    light.name, light.w.x, light.w.y, light.w.z));
+        const Stencil st = make_stencil(light.w, m.grid.h, seg_axis);
         Field<double> tau(d.local(), 1, 1, 0.0);  // ghosts outside the domain stay 0: vacuum
         // Periodic x/y: wrap indices into the domain (x/y are never split: slabs along z).
         auto wrap = [&](int v, int axis) {
@@ -305,15 +314,32 @@ LightTransport compute_light_transport(const Decomposition& d, const Medium& m,
                     t += tap.weight * tau(wrap(i + tap.off[0], 0), wrap(j + tap.off[1], 1), k + tap.off[2]);
             tau(i, j, k) = t;
         };
-        const auto stats = sweep::run(d, tau, sweep::Octant::of(light.w), sopt, kernel);
-        wait += stats.wait_seconds;
+        // The engine visits k, then rows j, then i. Segments from the x layer over periodic y
+        // read plane i - 1 at wrapped rows that this order may reach only later in the pass:
+        // sweep again until nothing changes (each pass carries the light across one more wrap;
+        // the taps are strictly upwind in x, so at most n_x + 1 passes; equal bits mean final).
+        const bool wrapped_rows_later = seg_axis == 0 && d.periodic(1);
+        std::vector<double> before;
+        for (int pass = 1;; ++pass) {
+            if (wrapped_rows_later) before = tau.owned_values();
+            const auto stats = sweep::run(d, tau, sweep::Octant::of(light.w), sopt, kernel);
+            wait += stats.wait_seconds;
+            if (!wrapped_rows_later) break;
+            int changed = tau.owned_values() != before ? 1 : 0;
+            MPI_Allreduce(MPI_IN_PLACE, &changed, 1, MPI_INT, MPI_LOR, d.comm());
+            passes = std::max(passes, pass);
+            if (!changed) break;
+            if (pass > n[0] + 1)
+                throw Error(fmt::format("light pass: light '{}' still changes after {} sweeps over periodic y",
+                                        light.name, pass));
+        }
         exchange_halo(tau, d);
         lt.tau_rho.push_back(std::move(tau));
         progress.update(static_cast<double>(lt.tau_rho.size()));
     }
     progress.finish();
     report.values()["light"] = {{"terms", lights.size()}, {"method", "sweep"},
-                                {"pipeline_wait_seconds_rank0", wait}};
+                                {"pipeline_wait_seconds_rank0", wait}, {"sweeps_per_light_max", passes}};
     return lt;
 }
 

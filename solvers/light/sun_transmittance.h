@@ -43,8 +43,10 @@ inline constexpr double kMaxLightWraps = 1000.0;
 void check_lights_leave(const Decomposition& d, const std::vector<DirectionalLight>& lights);
 
 // Collective over d.comm(). m.rho must have its ghost layer exchanged. Times "light" into
-// report. method sweep: requires slabs along z (process grid 1 x 1 x P); with periodic x/y the
-// segment always starts from the upwind z layer (any non-horizontal light). method exact: long
+// report. method sweep: requires slabs along z (process grid 1 x 1 x P); with periodic axes the
+// segment starts from the upwind layer of the non-periodic axis the light crosses fastest (z
+// when x and y are both periodic), and over periodic y from an x layer the light is swept again
+// until it no longer changes (report: sweeps_per_light_max). method exact: long
 // characteristics instead (see LightSpec; exact_chain.h); any decomposition; slabs along z
 // pipeline the rays down the chain, other process grids replicate the density.
 LightTransport compute_light_transport(const Decomposition& d, const Medium& m,
