@@ -6,9 +6,13 @@
 //   tolerance       1e-8       TRUE relative residual ||b - A x|| / ||b|| required
 //   max_iterations  200        over all restarts of one solve
 //   margin          2          cells around the bounding box of the cloud in the solve region
+//                              (cost only: the answer does not depend on it)
 //
-// Output per band: fluence = 4π U (W/m²) and flux F (W/m², 3 components), owned box + 1 ghost
-// layer (halo-exchanged), zero in empty cells. Bands with equal (sigma_t, albedo, g) share one
+// Output per band: fluence = 4π U' + E0 (T' - T) (W/m²) and flux F (W/m², 3 components), owned
+// box + 1 ghost layer (halo-exchanged). U' is the P1 solution, zero in empty cells; the second
+// term is the delta-Eddington forward peak (delta_scaling.h), once-scattered light kept in the
+// collimated beam, which is non-zero wherever the beam has been scattered, also in empty cells
+// in a cloud's shadow (and the peak's flux E0 (T' - T) w_light likewise). Bands with equal (sigma_t, albedo, g) share one
 // matrix and multigrid setup; among them, bands whose light irradiances E0 are proportional
 // share one solve (scaled). Report: values()["diffusion"] and phases "diffusion/...".
 #pragma once

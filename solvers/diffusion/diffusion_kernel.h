@@ -17,7 +17,7 @@
 // and the face carries the outgoing flux F·n_out = 2π U_f, U_f = (4D U_P - 2h n·G)/(4D + h).
 // Empty cells (kappa_tr = 0) get an identity row with zero rhs and no couplings.
 // D uses max(kappa_tr, kappa_floor): the transport mean free path is capped at half the smallest
-// extent of the solve region (DiffusionOptions::max_transport_length overrides). Without the cap,
+// extent of the full cells' bounding box (DiffusionOptions::max_transport_length overrides). Without the cap,
 // the near-empty cells at a cloud's smooth edge (rho -> 0, D -> ∞) form near-singular floating
 // patches and PFMG-PCG took 343 iterations on the 64³ cumulus. G is capped consistently,
 // G = Q1 / max(kappa_tr, floor), since F = 4π(Q1 - ∇U/3)/kappa_tr (README: uncapped G gives

@@ -31,7 +31,9 @@ struct DiffusionProblem {
 // The solve region: bounding box of the full cells grown by `margin`, clipped to the domain;
 // the whole axis where periodic. Empty when no cell is full.
 struct SolveRegion {
-    Box box;
+    Box box;    // where the system is solved
+    Box cloud;  // the full cells' bounding box (the whole axis where periodic): the default
+                // transport-length cap comes from it, so the margin changes only the cost
     std::int64_t cells() const { return box.cells(); }
 };
 
@@ -46,6 +48,7 @@ struct SolveStats {
     // face (the boundary layer where P1 with a forward-peaked source fails) and elsewhere.
     std::int64_t negative_boundary_cells = 0, negative_interior_cells = 0;
     double min_U = 0.0, min_U_interior = 0.0;  // most negative U (all cells / no Marshak face)
+    double max_U = 0.0;                         // largest U, the scale of the minima
 };
 
 struct DiffusionResult {

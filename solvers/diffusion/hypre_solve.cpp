@@ -148,6 +148,11 @@ LinearSolveOutput solve_with_hypre(const Decomposition& d, const Assembler& asse
         timer.reset();
         st.solve_seconds = wall_time() - t0;
         if (!ok) {
+            const std::string why =
+                !std::isfinite(st.true_residual) ? "the residual is not finite"
+                : left <= 0 ? fmt::format("the limit of {} iterations was reached", opt.max_iterations)
+                            : fmt::format("{} restarts from the last iterate did not bring the true residual down",
+                                          rounds.size() - 1);
             // Residual history from zero at 1, 2, 4, ... iterations (true residuals).
             std::vector<std::pair<int, double>> history;
             solver.set_tolerance(0.0);
@@ -161,10 +166,10 @@ LinearSolveOutput solve_with_hypre(const Decomposition& d, const Assembler& asse
                 if (its >= opt.max_iterations) break;
             }
             throw Error(fmt::format(
-                "diffusion: {} did not reach the relative residual {:.1e} in {} iterations "
-                "(true residual {:.3e}; restarts at {}); history from zero, iteration: true "
+                "diffusion: {} did not reach the relative residual {:.1e}: {} ({} iterations, "
+                "true residual {:.3e}; restarts at {}); history from zero, iteration: true "
                 "residual: {}",
-                opt.solver, opt.tolerance, opt.max_iterations, st.true_residual,
+                opt.solver, opt.tolerance, why, st.iterations, st.true_residual,
                 format_history(rounds), format_history(history)));
         }
         x.get_box_values(box, out.x[r]);

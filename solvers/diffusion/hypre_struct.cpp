@@ -123,7 +123,12 @@ Grid::Grid(MPI_Comm comm, const Box& box, const Int3& period) {
     }
     HYPRE_Int per[3] = {period[0], period[1], period[2]};
     if (per[0] > 0 || per[1] > 0 || per[2] > 0) HYPRE_StructGridSetPeriodic(g_, per);
-    check_all(comm, HYPRE_StructGridAssemble(g_), "StructGridAssemble");
+    try {
+        check_all(comm, HYPRE_StructGridAssemble(g_), "StructGridAssemble");
+    } catch (...) {  // the destructor does not run for a constructor that throws
+        HYPRE_StructGridDestroy(g_);
+        throw;
+    }
 }
 Grid::~Grid() { HYPRE_StructGridDestroy(g_); }
 
@@ -137,7 +142,12 @@ SymmetricStencil7::~SymmetricStencil7() { HYPRE_StructStencilDestroy(s_); }
 Matrix::Matrix(MPI_Comm comm, const Grid& grid, const SymmetricStencil7& stencil) : comm_(comm) {
     HYPRE_StructMatrixCreate(comm, grid.get(), stencil.get(), &A_);
     HYPRE_StructMatrixSetSymmetric(A_, 1);
-    check_all(comm, HYPRE_StructMatrixInitialize(A_), "StructMatrixInitialize");
+    try {
+        check_all(comm, HYPRE_StructMatrixInitialize(A_), "StructMatrixInitialize");
+    } catch (...) {  // the destructor does not run for a constructor that throws
+        HYPRE_StructMatrixDestroy(A_);
+        throw;
+    }
 }
 Matrix::~Matrix() { HYPRE_StructMatrixDestroy(A_); }
 
@@ -152,7 +162,12 @@ void Matrix::assemble() { check_all(comm_, HYPRE_StructMatrixAssemble(A_), "Stru
 
 Vector::Vector(MPI_Comm comm, const Grid& grid) : comm_(comm) {
     HYPRE_StructVectorCreate(comm, grid.get(), &v_);
-    check_all(comm, HYPRE_StructVectorInitialize(v_), "StructVectorInitialize");
+    try {
+        check_all(comm, HYPRE_StructVectorInitialize(v_), "StructVectorInitialize");
+    } catch (...) {  // the destructor does not run for a constructor that throws
+        HYPRE_StructVectorDestroy(v_);
+        throw;
+    }
     HYPRE_StructVectorSetConstantValues(v_, 0.0);
 }
 Vector::~Vector() { HYPRE_StructVectorDestroy(v_); }

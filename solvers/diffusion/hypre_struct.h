@@ -28,7 +28,8 @@ void ensure_initialized();
 class Grid {
 public:
     // Collective. box: this rank's cells (may be empty). period[a] > 0 makes axis a periodic
-    // with that period (hypre: PFMG/SMG need powers of two there).
+    // with that period. hypre's manual warns that some of its solvers need powers of two there;
+    // PFMG and SMG (alone and in PCG) do not: the slab test runs periods 5 and 6.
     Grid(MPI_Comm comm, const Box& box, const Int3& period);
     ~Grid();
     Grid(const Grid&) = delete;

@@ -51,7 +51,7 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
     LinearSolveOutput lin = opt.solver == "petsc"
                                 ? solve_with_petsc(d, assembler, p, res.region, opt, report)
                                 : solve_with_hypre(d, assembler, p, res.region, opt, report);
-    ScopedTimer flux_timer(report, "flux");  // U on the local box, F = -grad U / (3 kappa_tr) + ..., clamping
+    ScopedTimer flux_timer(report, "flux");  // U on the local box, F = 4π(G - D grad U), clamping
     for (size_t r = 0; r < nrhs; ++r) {
         size_t n = 0;
         for_each_cell(lin.box, [&](int i, int j, int k) {
@@ -67,9 +67,10 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
         res.stats[r] = lin.stats[r];
         SolveStats& st = res.stats[r];
         std::int64_t neg[2] = {0, 0}, gneg[2];
-        double umin[2] = {0.0, 0.0}, gumin[2];
+        double umin[2] = {0.0, 0.0}, gumin[2], umax = 0.0;
         for_each_cell(d.local(), [&](int i, int j, int k) {
             double& u = res.U[r](i, j, k);
+            umax = std::max(umax, u);
             if (u >= 0.0) return;
             const int c = assembler.has_marshak_face(i, j, k) ? 0 : 1;
             ++neg[c];
@@ -78,6 +79,8 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
         });
         MPI_Allreduce(neg, gneg, 2, MPI_INT64_T, MPI_SUM, d.comm());
         MPI_Allreduce(umin, gumin, 2, MPI_DOUBLE, MPI_MIN, d.comm());
+        MPI_Allreduce(MPI_IN_PLACE, &umax, 1, MPI_DOUBLE, MPI_MAX, d.comm());
+        st.max_U = umax;
         st.min_U = std::min(gumin[0], gumin[1]);
         st.min_U_interior = gumin[1];
         st.negative_boundary_cells = gneg[0];
@@ -93,7 +96,8 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
                                   {"negative_boundary_cells", st.negative_boundary_cells},
                                   {"negative_interior_cells", st.negative_interior_cells},
                                   {"min_U", st.min_U},
-                                  {"min_U_interior", st.min_U_interior}});
+                                  {"min_U_interior", st.min_U_interior},
+                                  {"max_U", st.max_U}});
     }
     return res;
 }
@@ -103,10 +107,11 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
 // largest change of U relative to max U is below opt.limiter_tolerance.
 void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t r,
                        const DiffusionOptions& opt, Report& report, DiffusionResult& out) {
-    DiffusionProblem q;
+    DiffusionProblem q;  // p with right-hand side r only (every member but Q0 and G copied)
     q.h = p.h;
     q.n = p.n;
     q.periodic = p.periodic;
+    q.reflective = p.reflective;
     q.kappa_tr = p.kappa_tr;
     q.sigma_a = p.sigma_a;
     q.Q0 = {p.Q0[r]};

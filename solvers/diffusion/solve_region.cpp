@@ -1,6 +1,7 @@
 #include "solvers/diffusion/solve_region.h"
 
 #include <algorithm>
+#include <cstdint>
 #include <limits>
 
 namespace nimbus::diffusion {
@@ -23,18 +24,21 @@ SolveRegion find_solve_region(const Decomposition& d, const DiffusionProblem& p,
     if (glo[0] == kBig) return r;  // no full cell anywhere
     for (int a = 0; a < 3; ++a) {
         if (p.periodic[a]) {
-            r.box.lo[a] = 0;
-            r.box.hi[a] = p.n[a];
+            r.cloud.lo[a] = r.box.lo[a] = 0;
+            r.cloud.hi[a] = r.box.hi[a] = p.n[a];
         } else {
-            r.box.lo[a] = std::max(0, glo[a] - margin);
-            r.box.hi[a] = std::min(p.n[a], -gneg_hi[a] + margin);
+            r.cloud.lo[a] = glo[a];
+            r.cloud.hi[a] = -gneg_hi[a];
+            // In 64-bit: a margin near INT_MAX must not wrap around.
+            r.box.lo[a] = static_cast<int>(std::max<std::int64_t>(0, std::int64_t{glo[a]} - margin));
+            r.box.hi[a] = static_cast<int>(std::min<std::int64_t>(p.n[a], std::int64_t{r.cloud.hi[a]} + margin));
         }
     }
     return r;
 }
 
 double default_transport_length(const SolveRegion& r, const DiffusionProblem& p) {
-    const Int3 s = r.box.shape();
+    const Int3 s = r.cloud.shape();
     double ell = std::numeric_limits<double>::infinity();
     for (int a = 0; a < 3; ++a)
         if (!p.periodic[a]) ell = std::min(ell, 0.5 * p.h * s[a]);

@@ -71,19 +71,4 @@ bool forward_peak_transmittance(const LightTransport& light, const BandOptics& o
     return true;
 }
 
-double forward_peak_fluence(const LightTransport& light, const BandOptics& optics, int band,
-                            bool delta_scaling, int i, int j, int k, Vec3* flux) {
-    std::vector<double> dT(light.lights.size(), 0.0);
-    forward_peak_transmittance(light, optics, delta_scaling, i, j, k, dT.data());
-    double e = 0.0;
-    Vec3 ew;
-    for (size_t l = 0; l < light.lights.size(); ++l) {
-        const double et = band_value(light.lights[l].E0, band) * dT[l];
-        e += et;
-        ew += light.lights[l].w * et;
-    }
-    if (flux) *flux = ew;
-    return e;
-}
-
 }  // namespace nimbus::diffusion

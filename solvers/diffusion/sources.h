@@ -27,10 +27,8 @@ DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const Lig
 // forward_peak_transmittance writes T' - T of every light at cell (i, j, k) of light's owned box
 // + ghost layer into dT[0 .. lights) (the same for every band of a group: T' and T depend on
 // the optics only) and returns false, writing nothing, when the scaling moves nothing (off, or
-// no forward peak). forward_peak_fluence sums one band. Not collective.
+// no forward peak). Not collective.
 bool forward_peak_transmittance(const LightTransport& light, const BandOptics& optics, bool delta_scaling,
                                 int i, int j, int k, double* dT);
-double forward_peak_fluence(const LightTransport& light, const BandOptics& optics, int band,
-                            bool delta_scaling, int i, int j, int k, Vec3* flux = nullptr);
 
 }  // namespace nimbus::diffusion

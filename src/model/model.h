@@ -49,10 +49,6 @@ struct LightTransport {
                               int i, int j, int k) const;
     // Reduced-incident fluence ∫ I_ri dw = Σ E0 T (W/m²) in band b at cell (i, j, k).
     double fluence_reduced(const Medium& m, int b, int i, int j, int k) const;
-    // First-scatter source moments (DESIGN §1), band b, cell (i, j, k):
-    //   Q0 = (1/4π) Σ kappa a E0 T,  Q1 = (1/4π) ∫ Q w dw = Σ g (1/4π) kappa a E0 T w_light.
-    double Q0(const Medium& m, int b, int i, int j, int k) const;
-    Vec3 Q1(const Medium& m, int b, int i, int j, int k) const;
 };
 
 struct DiffuseSolution {

@@ -60,8 +60,8 @@ struct DiffusionOptions {
     double tolerance = 1e-8;          // relative residual
     int max_iterations = 200;
     int margin = 2;                   // cells of margin around the bounding box of non-empty cells
-    double max_transport_length = 0;  // m, cap on 1/kappa_tr in D and G (0 = half the solve region's smallest
-                                      // non-periodic extent, default_transport_length)
+    double max_transport_length = 0;  // m, cap on 1/kappa_tr in D and G (0 = half the smallest non-periodic
+                                      // extent of the cloud's bounding box, default_transport_length)
     bool clamp_negative = true;       // set negative P1 fluence (boundary layers lit by a strongly
                                       // forward-scattered source) to 0; counts are reported
     bool delta_scaling = true;        // delta-Eddington optics for the P1 solve (solvers/diffusion)

@@ -95,7 +95,9 @@ struct SlabP1 {
     }
 };
 
-// Max error of the model's fluence against the exact fluence, relative to its max. Plain P1:
+// Max error of the model's fluence against the exact fluence, relative to the max of the exact
+// P1 part 4π U (the forward peak, which the model adds in closed form, would only dilute the
+// error: with it in the denominator the delta-Eddington error looked 400x smaller). Plain P1:
 // 4π U. Delta-Eddington (solvers/diffusion/delta_scaling.h): the same closed form with the
 // scaled optics kappa' = kappa (1 - a f), a' = a (1 - f)/(1 - a f), g' = g/(1 + g), f = g², plus
 // the forward-peak light E0 (T' - T), T' = exp(-kappa' (H - z)/mu0).
@@ -103,7 +105,9 @@ double slab_error(int nz, double g, bool delta_scaling) {
     const double H = 8.0, h = H / nz, E0 = 2.0;
     const BandOptics band{"gray", 1.0, 0.9, g};
     const Vec3 w = normalized(Vec3{0.3, 0.2, -1.0});
-    Decomposition d(MPI_COMM_WORLD, {4, 4, nz}, {0, 0, 0}, {true, true, false});
+    // 5 x 6 columns: periods that are not powers of two (hypre's manual warns that some of its
+    // solvers need powers of two on periodic axes; PFMG-PCG does not).
+    Decomposition d(MPI_COMM_WORLD, {5, 6, nz}, {0, 0, 0}, {true, true, false});
     auto rho = [](int, int, int) { return 1.0; };
     Medium m = test::make_medium(d, h, band, rho);
     LightTransport light = test::column_light(d, h, w, E0, rho);
@@ -129,7 +133,7 @@ double slab_error(int nz, double g, bool delta_scaling) {
                E0 * (std::exp(-kappa_s * (H - z) / mu0) - std::exp(-kappa * (H - z) / mu0));
     };
     double err = 0.0, umax = 0.0;
-    for (int k = 0; k < nz; ++k) umax = std::max(umax, fluence((k + 0.5) * h));
+    for (int k = 0; k < nz; ++k) umax = std::max(umax, 4 * kPi * std::abs(exact.U((k + 0.5) * h)));
     for_each_cell(d.local(), [&](int i, int j, int k) {
         err = std::max(err, std::abs(sol.fluence[0](i, j, k) - fluence((k + 0.5) * h)));
     });
@@ -145,7 +149,9 @@ TEST(DiffusionAnalytic, SlabUnderSunMatchesClosedFormP1) {
             if (test::world_rank() == 0)
                 std::printf("slab %s g=%.2f: relative max error %.3e %.3e %.3e, order %.2f\n",
                             delta ? "delta-Eddington" : "plain P1", g, e1, e2, e3, order);
-            EXPECT_LT(e3, 1e-3);
+            // Measured at 128 cells: 7.3e-4 (g = 0), 6.1e-4 (plain P1, g = 0.85), 3.7e-6
+            // (delta-Eddington, g = 0.85: the scaled problem is nearly isotropic and smooth).
+            EXPECT_LT(e3, delta && g > 0.0 ? 1e-5 : 1e-3);
             EXPECT_GT(order, 1.8);
         }
     }

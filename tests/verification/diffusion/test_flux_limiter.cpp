@@ -95,7 +95,7 @@ TEST(FluxLimiter, AgreesWithP1InsideAThickMedium) {
     diff = test::global_max(diff, d.comm());
     peak = test::global_max(peak, d.comm());
     if (test::world_rank() == 0) std::printf("thick cube interior: max |FLD - P1| / max = %.2e\n", diff / peak);
-    EXPECT_LT(diff / peak, 0.02);
+    EXPECT_LT(diff / peak, 5e-3);  // measured 1.3e-3
 }
 
 }  // namespace

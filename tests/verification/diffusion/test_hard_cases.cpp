@@ -54,23 +54,25 @@ void run_case(const Case& c) {
     fmax = test::global_max(fmax, MPI_COMM_WORLD);
     if (test::world_rank() == 0)
         std::printf("%-28s %3d iterations, true residual %.2e, fluence [%.3e, %.3e], negative P1 "
-                    "cells clamped: %lld at the surface, %lld inside (min 4πU %.3e)\n",
+                    "cells clamped: %lld at the surface, %lld inside (min U / max U %.2e)\n",
                     c.name, its, res, fmin, fmax, static_cast<long long>(neg_boundary),
-                    static_cast<long long>(neg_interior), 4 * std::numbers::pi * sys["min_U"].get<double>());
+                    static_cast<long long>(neg_interior), sys["min_U"].get<double>() / sys["max_U"].get<double>());
     EXPECT_TRUE(finite) << c.name;
     EXPECT_LE(its, kMaxIterations) << c.name;
     EXPECT_LE(res, opt.tolerance) << c.name;
-    EXPECT_GE(fmin, 0.0) << c.name;  // the written fluence: negative P1 values are clamped
-    // P1 goes negative only in the boundary layer lit by the forward-peaked source (cells with
-    // a Marshak face; g = 0.99: 9 cells, min 4πU = -5.8e-3 = -0.6% of the maximum; cloud
-    // touching the boundary: 3 cells, -2.9e-2 = -3.3%; the output clamps them to 0 and reports
-    // the counts), and only slightly (bound: 10% of the maximum); inside, at most solver
-    // round-off, in every case (with delta-Eddington sources also for kappa h = 1e-4 and
-    // g = 0.99).
-    const double min_surface = 4 * std::numbers::pi * sys["min_U"].get<double>();
-    EXPECT_GE(min_surface, -0.1 * fmax) << c.name;
-    const double min_inside = 4 * std::numbers::pi * sys["min_U_interior"].get<double>();
-    EXPECT_GE(min_inside, -opt.tolerance * fmax) << c.name;
+    // The written fluence: the clamp (clamp_negative, default) leaves no negative P1 value, and
+    // the forward peak added to it is never negative.
+    EXPECT_GE(fmin, 0.0) << c.name;
+    // The P1 solution itself, before the clamp, against its own maximum (the written maximum
+    // includes the forward peak): negative only in the boundary layer lit by the
+    // forward-peaked source (cells with a Marshak face; measured: only the cloud touching the
+    // boundary, 1 cell at -2.3% of max U; bound 5%);
+    // inside, at most solver round-off, in every case (with delta-Eddington sources also for
+    // kappa h = 1e-4 and g = 0.99).
+    const double umax = sys["max_U"].get<double>();
+    EXPECT_GT(umax, 0.0) << c.name;
+    EXPECT_GE(sys["min_U"].get<double>(), -0.05 * umax) << c.name;
+    EXPECT_GE(sys["min_U_interior"].get<double>(), -opt.tolerance * umax) << c.name;
     EXPECT_GT(fmax, 0.0) << c.name;
 }
 
