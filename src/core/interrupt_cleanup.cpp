@@ -25,6 +25,10 @@ constexpr int kSignals[] = {SIGINT, SIGTERM, SIGHUP};
 
 // Set while a Deferred exists: the handler then only notes the signal, raised again after.
 std::atomic<int> g_deferring{0}, g_pending{0};
+// Set by the first handler that ends the process. A signal often comes twice at once (timeout(1)
+// sends it to the command and then to its process group; mpiexec passes one on): a second one,
+// landing on another thread while the first cleans up, must not end the process half-way.
+std::atomic<int> g_ending{0};
 static_assert(std::atomic<int>::is_always_lock_free);
 
 bool add(const std::string& path, bool folder) {
@@ -42,17 +46,31 @@ void remove_all() {
         if (!g_entries[i].folder) ::unlink(g_entries[i].path);
     for (int i = n - 1; i >= 0; --i)  // latest (innermost) first; a folder with files stays
         if (g_entries[i].folder) ::rmdir(g_entries[i].path);
+    if (n > 0) {  // the process that registered outputs (rank 0) says what happened
+        static const char kMsg[] = "nimbus: interrupted: removed this run's temporary files and new folders\n";
+        [[maybe_unused]] const ssize_t w = ::write(STDERR_FILENO, kMsg, sizeof kMsg - 1);
+    }
 }
 
-// Installed with SA_RESETHAND: the disposition is the default again when this runs, so the
-// raise ends the process by the signal (its exit status says which).
+// Cleans up, then ends the process by `sig` (its exit status says which): the default action
+// again, and the signal raised (inside the handler it is blocked until the handler returns).
+// Only the first caller does it; any other returns at once and the first one ends the process.
+void end_by(int sig) {
+    if (g_ending.exchange(1, std::memory_order_acq_rel)) return;
+    remove_all();
+    struct sigaction dfl {};
+    dfl.sa_handler = SIG_DFL;
+    sigemptyset(&dfl.sa_mask);
+    ::sigaction(sig, &dfl, nullptr);
+    ::raise(sig);
+}
+
 extern "C" void on_signal(int sig) {
     if (g_deferring.load(std::memory_order_acquire)) {
         g_pending.store(sig, std::memory_order_release);
         return;
     }
-    remove_all();
-    ::raise(sig);
+    end_by(sig);
 }
 
 }  // namespace
@@ -67,7 +85,7 @@ void install() {
         sa.sa_handler = on_signal;
         sigemptyset(&sa.sa_mask);
         for (int other : kSignals) sigaddset(&sa.sa_mask, other);  // one cleanup at a time
-        sa.sa_flags = SA_RESETHAND;
+        sa.sa_flags = 0;  // not SA_RESETHAND: a second signal on another thread would kill at once
         ::sigaction(sig, &sa, nullptr);
     }
 }
@@ -83,12 +101,9 @@ Deferred::Deferred() { g_deferring.store(1, std::memory_order_release); }
 
 Deferred::~Deferred() {
     g_deferring.store(0, std::memory_order_release);
-    // The handler was reset to the default when the signal came (SA_RESETHAND): this ends the
-    // process by it, with whatever is still registered removed first.
-    if (const int sig = g_pending.exchange(0)) {
-        remove_all();
-        ::raise(sig);
-    }
+    // A signal came meanwhile: this ends the process by it, with whatever is still registered
+    // removed first.
+    if (const int sig = g_pending.exchange(0)) end_by(sig);
 }
 
 }  // namespace nimbus::interrupt_cleanup

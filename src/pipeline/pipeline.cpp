@@ -63,9 +63,10 @@ void prepare_output_dir(MPI_Comm comm, const std::string& dir, CreatedFolders& c
         if (p.filename().empty()) p = p.parent_path();  // "out/" -> "out"
         for (; !p.empty() && p != p.parent_path() && !fs::exists(p, ec_probe); p = p.parent_path())
             missing.push_back(p);
+        // Registered before they exist: a signal during create_directories still finds them
+        // (removing a folder that was not made yet is a no-op).
+        for (auto it = missing.rbegin(); it != missing.rend(); ++it) created.add(*it);
         fs::create_directories(dir, ec);
-        for (auto it = missing.rbegin(); it != missing.rend(); ++it)
-            if (fs::is_directory(*it, ec_probe)) created.add(*it);
         const fs::path probe = fs::path(dir) / ".nimbus_write_test";
         std::ofstream f(probe);
         if (ec || !f) msg = fmt::format("output folder '{}' cannot be created or is not writable", dir);

@@ -130,9 +130,10 @@ for sig in INT TERM; do
   for _ in $(seq 200); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
   ended=yes; if kill -0 "$pid" 2>/dev/null; then ended=no; kill -KILL "$pid"; fi
   wait "$pid"; code=$?
-  if [ "$made" = yes ] && [ "$ended" = yes ] && [ "$code" -eq $((128 + $(kill -l "$sig"))) ] && [ ! -e "$tmp/killed_$sig" ]; then
+  said=no; grep -q "nimbus: interrupted: removed this run's temporary files and new folders" "$tmp/killed.log" && said=yes
+  if [ "$made" = yes ] && [ "$ended" = yes ] && [ "$said" = yes ] && [ "$code" -eq $((128 + $(kill -l "$sig"))) ] && [ ! -e "$tmp/killed_$sig" ]; then
     pass=$((pass + 1)); else
-    fail=$((fail + 1)); echo "FAIL: SIG$sig: folder made $made, ended by the signal $ended, exit $code, left behind:"
+    fail=$((fail + 1)); echo "FAIL: SIG$sig: folder made $made, ended by the signal $ended, said so $said, exit $code, left behind:"
     find "$tmp/killed_$sig" 2>&1 | head -5; tail -3 "$tmp/killed.log"; fi
 done
 # A signal the run was started with ignored stays ignored (nohup): the run goes on.

@@ -3,13 +3,17 @@
 // runs in a forked child (no MPI there: it only registers, signals itself and dies), so the
 // test process keeps its own signal dispositions.
 #include <gtest/gtest.h>
+#include <pthread.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "src/core/interrupt_cleanup.h"
 
@@ -62,6 +66,44 @@ TEST(InterruptCleanup, SignalRemovesRegisteredPathsAndEndsByIt) {
         EXPECT_FALSE(fs::exists(s.file)) << sig;
         EXPECT_FALSE(fs::exists(s.dir / "made")) << sig;
         EXPECT_TRUE(fs::exists(s.kept)) << sig;
+    }
+}
+
+// The same signal twice at once on two threads (timeout(1) signals the command and then its
+// process group; MPI's threads may take either): the second must not end the process while the
+// first cleans up. With a one-shot handler (SA_RESETHAND) the second signal found the default
+// action and killed the child mid-cleanup, leaving files behind.
+TEST(InterruptCleanup, SecondSignalOnAnotherThreadWaitsForTheCleanup) {
+    for (int round = 0; round < 20; ++round) {
+        Scratch s("nimbus_interrupt_twice");
+        // Many files, so that the cleanup takes a while.
+        std::vector<fs::path> files;
+        for (int q = 0; q < interrupt_cleanup::kMaxPaths - 2; ++q) {  // + the folder and s.file
+            files.push_back(s.dir / "made" / ("part" + std::to_string(q) + ".tmp"));
+            std::ofstream(files.back()) << "partial";
+        }
+        const int status = in_child([&] {
+            ::signal(SIGINT, SIG_DFL);
+            interrupt_cleanup::install();
+            interrupt_cleanup::add_folder((s.dir / "made").string());
+            interrupt_cleanup::add_file(s.file.string());
+            for (const auto& f : files) interrupt_cleanup::add_file(f.string());
+            std::atomic<int> ready{0};
+            auto shoot = [&] {
+                ready.fetch_add(1);
+                while (ready.load() < 2) {}
+                ::pthread_kill(::pthread_self(), SIGINT);
+            };
+            std::thread a(shoot), b(shoot);
+            a.join();
+            b.join();
+            ::_exit(3);  // not reached
+        });
+        ASSERT_TRUE(WIFSIGNALED(status)) << "round " << round << ", status " << status;
+        EXPECT_EQ(WTERMSIG(status), SIGINT);
+        for (const auto& f : files) ASSERT_FALSE(fs::exists(f)) << "round " << round << ": " << f;
+        EXPECT_FALSE(fs::exists(s.dir / "made")) << "round " << round;
+        EXPECT_TRUE(fs::exists(s.kept));
     }
 }
 
