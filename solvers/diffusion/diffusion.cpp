@@ -7,6 +7,7 @@
 #include "solvers/diffusion/linear_solve.h"
 #include "solvers/diffusion/solve_diffusion.h"
 #include "solvers/diffusion/sources.h"
+#include "src/core/log.h"
 #include "src/physics/lights.h"
 #include "src/scene/emission.h"
 
@@ -29,8 +30,18 @@ public:
         return 8.0 * (26.0 + 4.0 * s.nbands()) * static_cast<double>(d.local().cells());
     }
     // solver = petsc: the decomposition and model.diffusion.petsc_options (linear_solve.h).
-    void check(const Scene&, const Decomposition& d, const Medium&) const override {
+    // Warns of settings that run but rarely mean what they say.
+    void check(const Scene&, const Decomposition& d, const Medium& m) const override {
         if (opt_.solver == "petsc") diffusion::check_petsc(d, opt_);
+        if (opt_.max_transport_length > 0 && opt_.max_transport_length < m.grid.h)
+            log::warn("model.diffusion.max_transport_length = {:g} m is below the cell size {:g} m: every cell "
+                      "thinner than 1/ℓ then diffuses less than across itself, so light stays where it is "
+                      "scattered and the fluence tends to Q0/sigma_a (0 = the cloud's own size)",
+                      opt_.max_transport_length, m.grid.h);
+        if (opt_.tolerance < 1e-14)
+            log::warn("model.diffusion.tolerance = {:g} is below what double precision usually reaches "
+                      "(1e-16 times the system's condition number): the solve may end in 'did not reach'",
+                      opt_.tolerance);
     }
     void solve(const SolveContext& ctx, DiffuseSolution& out) override {
         ScopedTimer timer(ctx.report, "diffusion");
@@ -59,7 +70,8 @@ public:
                 p = diffusion::make_problem(d, m, ctx.light, sources, group, opt_.delta_scaling);
             }
             const auto res = diffusion::solve_diffusion(d, p, solve_opt, ctx.report);
-            solves += static_cast<int>(group.rhs_weights.size());
+            // Solved only where something scatters (an empty region, or no light: none).
+            for (const auto& st : res.stats) solves += st.iterations > 0 ? 1 : 0;
             ScopedTimer bands_timer(ctx.report, "bands");  // each band's fields from the solutions and the forward peak
             const std::vector<DirectionalLight>& L = ctx.light.lights;
             std::vector<double> dT(L.size(), 0.0);  // T' - T per light at the cell, shared by the group's bands

@@ -156,6 +156,15 @@ void check_petsc(const Decomposition& d, const DiffusionOptions& opt) {
         throw Error(fmt::format("{}: PETSc would ignore '{}' in '{}' (an option is a name starting with - "
                                 "and at most one value)",
                                 kKey, text.stray.front(), opt.petsc_options));
+    // The stopping test is the model's (the TRUE relative residual, checked after the solve):
+    // options that would change it would only turn into a "did not reach" error.
+    for (const petsc::Option& o : text.options) {
+        const char* owner = o.name == "-diffusion_ksp_rtol" || o.name == "-diffusion_ksp_atol"
+                                ? "model.diffusion.tolerance (the relative residual every solve reaches)"
+                            : o.name == "-diffusion_ksp_max_it" ? "model.diffusion.max_iterations"
+                                                                : nullptr;
+        if (owner) throw Error(fmt::format("{}: '{}' is set by {}; leave it out of petsc_options", kKey, o.name, owner));
+    }
     const MPI_Comm comm = d.comm();
     ensure_petsc(comm);
     const petsc::QuietErrors quiet;
@@ -291,10 +300,15 @@ LinearSolveOutput solve_with_petsc(const Decomposition& d, const Assembler& asse
             KSPGetResidualHistory(ksp.ksp, &hist, &nh);
             std::vector<std::pair<int, double>> history;
             for (PetscInt h = 0; h < nh; ++h) history.emplace_back(static_cast<int>(h), hist[h] / b_norm);
+            KSPType type = nullptr;
+            KSPGetType(ksp.ksp, &type);
+            KSPConvergedReason reason = KSP_CONVERGED_ITERATING;
+            KSPGetConvergedReason(ksp.ksp, &reason);
             throw Error(fmt::format(
-                "diffusion: petsc CG did not reach the relative residual {:.1e} in {} iterations "
-                "(true residual {:.3e}); history, iteration: relative residual: {}",
-                opt.tolerance, st.iterations, st.true_residual, format_history(history)));
+                "diffusion: petsc {} did not reach the relative residual {:.1e}: it stopped with {} after {} "
+                "iterations (true residual {:.3e}); history, iteration: relative residual: {}",
+                type ? type : "KSP", opt.tolerance, KSPConvergedReasons[reason], st.iterations, st.true_residual,
+                format_history(history)));
         }
         run_collective(comm, [&] {
             const PetscScalar*** xv;

@@ -206,6 +206,14 @@ TEST(DiffusionParallel, BadPetscOptionsAreOneCollectiveErrorNamingTheOption) {
     typo->check(scene, d, m);
     test::expect_collective_error([&] { test::run_model(*typo, d, kH, kBand, cumulus, kSun, report); },
                                   "model.diffusion.petsc_options: PETSc did not use '-diffusion_pc_typo jacobi'");
+    // The stopping test belongs to model.diffusion.tolerance and max_iterations.
+    opt.petsc_options = "-diffusion_pc_type jacobi -diffusion_ksp_rtol 1e-2";
+    test::expect_collective_error([&] { make_diffusion_model(opt)->check(scene, d, m); },
+                                  "model.diffusion.petsc_options: '-diffusion_ksp_rtol' is set by "
+                                  "model.diffusion.tolerance");
+    opt.petsc_options = "-diffusion_ksp_max_it 3";
+    test::expect_collective_error([&] { make_diffusion_model(opt)->check(scene, d, m); },
+                                  "'-diffusion_ksp_max_it' is set by model.diffusion.max_iterations");
 }
 
 // A hypre failure on one rank (here a memory error flagged on the last rank, as hypre's
