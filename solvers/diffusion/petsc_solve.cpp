@@ -144,7 +144,9 @@ void check_all_read(MPI_Comm comm, PetscOptions options) {
                                        : ""));
 }
 
-const char* const kNeedsSlabs = "diffusion: solver = petsc needs slabs along z (process grid 1 x 1 x P)";
+const char* const kNeedsSlabs =
+    "model.diffusion.solver = \"petsc\" needs slabs along z (grid.process_grid = [1, 1, P]); the hypre solvers "
+    "(pfmg-pcg, the default) take any process grid";
 
 }  // namespace
 

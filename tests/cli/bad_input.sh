@@ -87,8 +87,8 @@ petsc=("${small[@]}" --set 'model.name="diffusion"' --set 'model.diffusion.solve
 rejected="model.diffusion.petsc_options: PETSc rejected '-diffusion_pc_type nonexistent': Unable to find requested PC type nonexistent"
 expect_error "$rejected" "${petsc[@]}" --set "model.diffusion.petsc_options=-diffusion_pc_type nonexistent"
 SUB=info expect_error "$rejected" "${petsc[@]}" --set "model.diffusion.petsc_options=-diffusion_pc_type nonexistent"
-SUB=info expect_error "PETSc rejected '-diffusion_ksp_rtol abc': Input string abc has no numeric value" "${petsc[@]}" \
-  --set "model.diffusion.petsc_options=-diffusion_ksp_type cg -diffusion_ksp_rtol abc -diffusion_pc_type jacobi"
+SUB=info expect_error "PETSc rejected '-diffusion_ksp_divtol abc': Input string abc has no numeric value" "${petsc[@]}" \
+  --set "model.diffusion.petsc_options=-diffusion_ksp_type cg -diffusion_ksp_divtol abc -diffusion_pc_type jacobi"
 SUB=info expect_error "'-pc_type' lacks the prefix of the solver's options, -diffusion_" "${petsc[@]}" --set "model.diffusion.petsc_options=-pc_type jacobi"
 SUB=info expect_error "PETSc would ignore 'diffusion_pc_type'" "${petsc[@]}" --set "model.diffusion.petsc_options=diffusion_pc_type jacobi"
 # Well formed, but no PETSc object reads it: refused by name after the first solve.
@@ -101,6 +101,11 @@ out=$(timeout 120 "$mpiexec" -n "$np" "$nimbus" run "${small[@]}" --out /proc/ve
 if [ $code -ne 0 ] && [ $code -ne 124 ] && echo "$out" | grep -q "nimbus: error:.*not writable"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: unwritable output folder (exit $code)"; echo "$out" | tail -3; fi
 # More ranks than z cells.
 if [ "$np" -gt 1 ]; then expect_error "no cells" --set "grid.n=[8,8,1]"; fi
+# The PETSc cross-check path needs slabs along z: the message names the keys.
+if [ "$np" -gt 1 ]; then
+  expect_error 'model.diffusion.solver = "petsc" needs slabs along z (grid.process_grid = \[1, 1, P\])' "${small[@]}" \
+    --set 'model.name="diffusion"' --set 'model.diffusion.solver="petsc"' --set "grid.process_grid=[2,1,1]"
+fi
 # psf needs a light to blur: a clear message, not its internal volume count.
 if "$nimbus" info --set "grid.n=[8,8,8]" 2>&1 | grep -q "models in this build:.*psf"; then
   expect_error "model psf: the scene has no light to blur" "${small[@]}" --set 'model.name="psf"' --set "sun.enabled=false" --set "sky.radiance=[]"
