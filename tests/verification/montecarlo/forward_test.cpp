@@ -356,9 +356,9 @@ TEST(Forward, SameSeedSameResultOtherSeedDiffers) {
     EXPECT_TRUE(differs);
 }
 
-// Band 0's fluence and standard error of a equal b's to 1e-12 of b's peak fluence on box (the
+// Band 0's fluence and standard error of a equal b's to `rel` of b's peak fluence on box (the
 // same photons: only the order of the sums may differ).
-void expect_same_fields(const ForwardResult& a, const ForwardResult& b, const Box& box) {
+void expect_same_fields(const ForwardResult& a, const ForwardResult& b, const Box& box, double rel = 1e-12) {
     double worst = 0.0, peak = 0.0;
     for_each_cell(box, [&](int i, int j, int k) {
         worst = std::max(worst, std::abs(a.fluence[0](i, j, k) - b.fluence[0](i, j, k)));
@@ -366,7 +366,7 @@ void expect_same_fields(const ForwardResult& a, const ForwardResult& b, const Bo
         peak = std::max(peak, b.fluence[0](i, j, k));
     });
     EXPECT_GT(peak, 0.0);
-    EXPECT_LE(worst, 1e-12 * peak);
+    EXPECT_LE(worst, rel * peak);
 }
 
 // Decomposition invariance: the world run equals a run of the whole grid on MPI_COMM_SELF to
@@ -522,7 +522,11 @@ void expect_equals_budget_free_run(const Slab& slab, const ForwardResult& r) {
     EXPECT_EQ(e.layout_batches, r.batches);
     EXPECT_EQ(e.photons, r.photons);
     EXPECT_EQ(e.collisions, r.collisions);
-    expect_same_fields(r, e, slab.d.local());
+    // A budget run traces its batches in chunks, and at a chunk's end the lane kernel drains and
+    // refills its lanes, so a cell's tallies are added in another order than in one piece: up
+    // to 1.8e-12 of the peak when a loaded machine made the chunks short (1e-12 failed then).
+    // One photon more or less moves the peak cell by ~1e-6 of it, five orders above this bound.
+    expect_same_fields(r, e, slab.d.local(), 1e-11);
     const Counters& c = r.counters[0];
     for (int q = 0; q < ncounters; ++q) {
         EXPECT_NEAR(c[q], e.counters[0][q], 1e-12 * c[incident]);
