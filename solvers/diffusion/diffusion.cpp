@@ -3,10 +3,13 @@
 #include <algorithm>
 #include <numbers>
 
+#include <fmt/format.h>
+
 #include "solvers/diffusion/band_groups.h"
 #include "solvers/diffusion/linear_solve.h"
 #include "solvers/diffusion/solve_diffusion.h"
 #include "solvers/diffusion/sources.h"
+#include "src/core/error.h"
 #include "src/core/log.h"
 #include "src/physics/lights.h"
 #include "src/scene/emission.h"
@@ -33,6 +36,17 @@ public:
     // Warns of settings that run but rarely mean what they say.
     void check(const Scene&, const Decomposition& d, const Medium& m) const override {
         if (opt_.solver == "petsc") diffusion::check_petsc(d, opt_);
+        // hypre's SMG needs a power-of-two period on a periodic axis (HYPRE_struct_ls.h, "Struct
+        // SMG Solver"); otherwise it can give NaN from the first iteration (24 cells periodic in x).
+        if (opt_.solver == "smg" || opt_.solver == "smg-pcg")
+            for (int a = 0; a < 3; ++a) {
+                const int n = d.global().size(a);
+                if (d.periodic(a) && n > 1 && (n & (n - 1)) != 0)
+                    throw Error(fmt::format("model.diffusion.solver = \"{}\" needs a power-of-two number of cells on "
+                                            "a periodic axis (hypre's SMG), and grid.n[{}] = {} along periodic {}; "
+                                            "pfmg-pcg (the default) takes any size",
+                                            opt_.solver, a, n, "xyz"[a]));
+            }
         if (opt_.max_transport_length > 0 && opt_.max_transport_length < m.grid.h)
             log::warn("model.diffusion.max_transport_length = {:g} m is below the cell size {:g} m: every cell "
                       "thinner than 1/ℓ then diffuses less than across itself, so light stays where it is "

@@ -28,10 +28,9 @@ void ensure_initialized();
 class Grid {
 public:
     // Collective. box: this rank's cells (may be empty). period[a] > 0 makes axis a periodic
-    // with that period. hypre's manual warns that some of its solvers need powers of two there.
-    // PFMG-PCG does not (the slab test runs periods 5 and 6). SMG can fail on a periodic axis:
-    // NaN alone and no convergence in PCG on a random-fill 24 x 20 x 16 medium periodic in x
-    // (fine periodic in y, and on the cumulus at that size); not understood yet.
+    // with that period. PFMG takes any period (the slab test runs periods 5 and 6); SMG needs a
+    // power of two (HYPRE_struct_ls.h): with 24 it gave NaN, so the diffusion model refuses SMG
+    // on other periods before the run (diffusion.cpp, DiffusionModel::check).
     Grid(MPI_Comm comm, const Box& box, const Int3& period);
     ~Grid();
     Grid(const Grid&) = delete;

@@ -106,6 +106,11 @@ if [ "$np" -gt 1 ]; then
   expect_error 'model.diffusion.solver = "petsc" needs slabs along z (grid.process_grid = \[1, 1, P\])' "${small[@]}" \
     --set 'model.name="diffusion"' --set 'model.diffusion.solver="petsc"' --set "grid.process_grid=[2,1,1]"
 fi
+# hypre's SMG needs a power-of-two period (it gave NaN on 24 cells periodic in x); run and info refuse.
+expect_error 'model.diffusion.solver = "smg-pcg" needs a power-of-two number of cells on a periodic axis.*grid.n\[0\] = 12' \
+  "${small[@]}" --set 'model.name="diffusion"' --set 'model.diffusion.solver="smg-pcg"' --set 'grid.periodic=[true,false,false]'
+SUB=info expect_error 'model.diffusion.solver = "smg" needs a power-of-two number of cells' \
+  "${small[@]}" --set 'model.name="diffusion"' --set 'model.diffusion.solver="smg"' --set 'grid.periodic=[false,true,false]'
 # psf needs a light to blur: a clear message, not its internal volume count.
 if "$nimbus" info --set "grid.n=[8,8,8]" 2>&1 | grep -q "models in this build:.*psf"; then
   expect_error "model psf: the scene has no light to blur" "${small[@]}" --set 'model.name="psf"' --set "sun.enabled=false" --set "sky.radiance=[]"
