@@ -177,7 +177,9 @@ std::int64_t TableReader::integer(const std::string& key, std::int64_t lo, std::
     lo = std::max(lo, kMin + 1);
     if (x == kMax || x == kMin)
         fail(key, fmt::format("is beyond the 64-bit integer range: must be an integer in [{}, {}]", lo, hi));
-    if (x < lo || x > hi) fail(key, fmt::format("= {} must be an integer in [{}, {}]", x, lo, hi));
+    // One bound in the message: the other is the type's far limit, which would only confuse.
+    if (x > hi) fail(key, fmt::format("= {} is too large (at most {})", x, hi));
+    if (x < lo) fail(key, fmt::format("= {} is too small (at least {})", x, lo));
     return x;
 }
 

@@ -174,7 +174,10 @@ void info(const RunOptions& opts, int plan_ranks) {
                        : tau < 3   ? "intermediate: multiple scattering matters; 'montecarlo' is the reference"
                                    : "optically thick: multiple scattering dominates; 'diffusion' suits the core, "
                                      "'montecarlo' is the reference";
-    if (!s.sources.empty())
+    if (filled == 0)
+        advice = "empty (density 0 everywhere): nothing scatters, every model gives zero diffuse light and the "
+                 "image shows the background (check medium.density and medium.kind)";
+    else if (!s.sources.empty())
         advice = fmt::format("lit by {} volume source(s) ([[sources]]): 'dom', 'diffusion', 'lpm' and "
                              "'montecarlo' model them ('montecarlo' is the reference; 'diffusion' has no "
                              "transport across empty cells); optical depth: {}",

@@ -36,6 +36,12 @@ void DiffusionOptions::validate() const {
         throw Error(fmt::format("model.diffusion.flux_limiter = '{}': allowed are none, levermore-pomraning", flux_limiter));
     if (limiter_iterations < 1) throw Error("model.diffusion.limiter_iterations must be >= 1");
     if (!(limiter_tolerance > 0 && limiter_tolerance < 1)) throw Error("model.diffusion.limiter_tolerance must be in (0, 1)");
+    // Like petsc_options: a limiter setting without the limiter would be ignored silently.
+    const DiffusionOptions defaults;
+    if (flux_limiter == "none" && (limiter_iterations != defaults.limiter_iterations ||
+                                   limiter_tolerance != defaults.limiter_tolerance))
+        throw Error("model.diffusion.limiter_iterations and limiter_tolerance are read only with "
+                    "flux_limiter = \"levermore-pomraning\"");
     if (!petsc_options.empty() && solver != "petsc")
         throw Error("model.diffusion.petsc_options is read only with solver = \"petsc\"");
 }
