@@ -28,9 +28,12 @@ public:
     // hypre's 7-point matrix, vectors and multigrid hierarchy, the right-hand sides and the per
     // band fluence and flux: 8 (26 + 4 bands) bytes per local cell, calibrated on the default
     // cloud (measured 306 bytes per cell at 3 bands; the solve covers only the cloud's box, so
-    // this is an upper bound elsewhere).
+    // this is an upper bound elsewhere). The flux limiter adds 21 values per cell: its copy of
+    // the problem for one right-hand side (6), the previous U (1), lambda and its target (2),
+    // the Anderson history (12: 5 pairs of differences, the last iterate and residual).
     double memory_bytes(const Scene& s, const Decomposition& d, int) const override {
-        return 8.0 * (26.0 + 4.0 * s.nbands()) * static_cast<double>(d.local().cells());
+        const double limiter = opt_.flux_limiter == "none" ? 0.0 : 21.0;
+        return 8.0 * (26.0 + 4.0 * s.nbands() + limiter) * static_cast<double>(d.local().cells());
     }
     // solver = petsc: the decomposition and model.diffusion.petsc_options (linear_solve.h).
     // Warns of settings that run but rarely mean what they say.

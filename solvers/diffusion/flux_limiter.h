@@ -8,9 +8,8 @@
 //   lambda(R) = (coth R - 1/R) / R            (-> 1/3 for R -> 0, -> 1/R for R -> ∞),
 // so |F| = 4π lambda R U <= 4π U. Written as the P1 equation with an effective opacity
 //   kappa_eff = kappa_tr / (3 lambda)  (D = 1/(3 kappa_eff), G = Q1 / kappa_eff),
-// the same assembly and solver apply; lambda comes from the previous iterate (Picard, damped:
-// lambda_{n+1} = (lambda_n + lambda(R_n)) / 2, since the undamped iteration oscillates in thin
-// media).
+// the same assembly and solver apply; lambda comes from the previous iterates (the fixed point
+// lambda = lambda(R(U(lambda))) by Anderson-accelerated Picard iteration, solve_diffusion.cpp).
 // From that iterate's flux (assembled with kappa_c = max(kappa_eff, floor)):
 //   |∇U - 3 Q1| = 3 kappa_c |F| / (4π)   =>   R = 3 kappa_c |F| / (4π kappa_tr U).
 #pragma once

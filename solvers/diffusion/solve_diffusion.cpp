@@ -10,6 +10,7 @@
 #include "solvers/diffusion/flux_limiter.h"
 #include "solvers/diffusion/linear_solve.h"
 #include "solvers/diffusion/solve_region.h"
+#include "src/core/anderson.h"
 #include "src/core/error.h"
 #include "src/core/halo.h"
 #include "src/core/report.h"
@@ -103,8 +104,8 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
 }
 
 // Flux-limited diffusion (flux_limiter.h) for right-hand side r alone (lambda depends on U):
-// Picard iteration on kappa_eff = kappa_tr / (3 lambda(R)) from the previous iterate, until the
-// largest change of U relative to max U is below opt.limiter_tolerance.
+// fixed-point iteration on kappa_eff = kappa_tr / (3 lambda), lambda = lambda(R) of the previous
+// iterates, until the largest change of U relative to max U is below opt.limiter_tolerance.
 void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t r,
                        const DiffusionOptions& opt, Report& report, DiffusionResult& out) {
     DiffusionProblem q;  // p with right-hand side r only (every member but Q0 and G copied)
@@ -121,18 +122,35 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
     std::vector<double> history;
     int linear_iterations = res.stats[0].iterations;
     bool converged = false;
+    // Anderson acceleration (src/core/anderson.h) of lambda <- lambda(R(U(lambda))), depth 5,
+    // undamped: the first step is then a plain Picard step. A damped first step (the old
+    // lambda <- (lambda + lambda(R)) / 2) can leave every cell's kappa_tr / (3 lambda) below the
+    // cap's floor, so U does not move and the change test stops far from the fixed point
+    // (test_flux_limiter.cpp, the thin cube). On the cumulus at tolerance 1e-3: 11 Picard
+    // iterations and 1.8e-4 rel. L2 from the fixed point, against 31 and 3.6e-4 damped.
+    AndersonMixer mixer(d.comm(), 5, 1.0);
+    const double lambda_min = levermore_pomraning(kMaxKnudsen);
+    std::vector<double> lambda, target;  // lambda_n and lambda(R(U_n)) of the cells with kappa_tr > 0
     for (int it = 0; it < opt.limiter_iterations && !converged; ++it) {
+        lambda.clear();
+        target.clear();
         for_each_cell(d.local(), [&](int i, int j, int k) {
             const double kt = p.kappa_tr(i, j, k);
             if (kt <= 0.0) return;
             const double kc = std::max(q.kappa_tr(i, j, k), floor);
             const double* F = &res.flux[0](i, j, k);
             const double Fn = std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]);
-            const double lambda_prev = kt / (3.0 * q.kappa_tr(i, j, k));
-            const double lambda =
-                0.5 * (lambda_prev + levermore_pomraning(knudsen_number(res.U[0](i, j, k), Fn, kt, kc)));
-            q.kappa_tr(i, j, k) = kt / (3.0 * lambda);
-            for (int c = 0; c < 3; ++c) q.G[0](i, j, k, c) = 3.0 * lambda * p.G[r](i, j, k, c);
+            lambda.push_back(kt / (3.0 * q.kappa_tr(i, j, k)));
+            target.push_back(levermore_pomraning(knudsen_number(res.U[0](i, j, k), Fn, kt, kc)));
+        });
+        lambda = mixer.next(lambda, target);
+        size_t n = 0;
+        for_each_cell(d.local(), [&](int i, int j, int k) {
+            const double kt = p.kappa_tr(i, j, k);
+            if (kt <= 0.0) return;
+            const double l = std::clamp(lambda[n++], lambda_min, 1.0 / 3.0);
+            q.kappa_tr(i, j, k) = kt / (3.0 * l);
+            for (int c = 0; c < 3; ++c) q.G[0](i, j, k, c) = 3.0 * l * p.G[r](i, j, k, c);
         });
         exchange_halo(q.kappa_tr, d);
         exchange_halo(q.G[0], d);
@@ -156,7 +174,7 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
                                 opt.limiter_iterations, fmt::join(history, ", ")));
     report.values()["diffusion"]["flux_limiter"].push_back(
         {{"picard_iterations", history.size()}, {"linear_iterations", linear_iterations},
-         {"relative_changes", history}});
+         {"relative_changes", history}, {"anderson_restarts", mixer.restarts()}});
     out.region = res.region;
     out.U.push_back(std::move(res.U[0]));
     out.flux.push_back(std::move(res.flux[0]));

@@ -54,11 +54,14 @@ double max_flux_ratio(const DiffuseSolution& sol, const Decomposition& d) {
 }
 
 DiffuseSolution run(const Decomposition& d, const BandOptics& band, double h, const std::string& limiter,
-                    Report& report) {
+                    Report& report, double limiter_tolerance = 1e-3) {
     DiffusionOptions opt;
     opt.delta_scaling = false;
     opt.flux_limiter = limiter;
-    opt.limiter_tolerance = 1e-3;
+    if (limiter != "none") {  // read only with the limiter (DiffusionOptions::validate)
+        opt.limiter_tolerance = limiter_tolerance;
+        opt.limiter_iterations = 100;
+    }
     auto model = make_diffusion_model(opt);
     return test::run_model(*model, d, h, band, cube, normalized(Vec3{0.3, 0.2, -1.0}), report);
 }
@@ -78,6 +81,39 @@ TEST(FluxLimiter, BoundsTheFluxWhereP1ExceedsIt) {
     EXPECT_LE(fld, 1.0);
 }
 
+TEST(FluxLimiter, StopsNearTheFixedPointWhereTheCapSetsD) {
+    // A thin cube (optical thickness 2.2, kappa_tr = 0.1 /m below the cap's floor 1/8 /m): P1's
+    // D is the cap's in every cell, and only a lambda below kappa_tr / (3 floor) = 0.27 changes
+    // U. The old damped step lambda <- (lambda + lambda(R)) / 2 stayed above it: U did not move,
+    // the change test passed after one iteration, 2% from the fixed point (and 11% on the smoke
+    // scene). The fixed point here was confirmed by plain undamped Picard (15 iterations to
+    // 1e-6, the same field). The answer at tolerance 1e-2 must be within 1e-2 of the one at 1e-6
+    // (measured 3.5e-3), which must differ from P1 (measured 2.0e-2).
+    Decomposition d(MPI_COMM_WORLD, {kN, kN, kN});
+    const BandOptics thin{"gray", 0.137, 0.9, 0.3};
+    Report r0, r1, r2;
+    const auto p1 = run(d, thin, 1.0, "none", r0);
+    const auto loose = run(d, thin, 1.0, "levermore-pomraning", r1, 1e-2);
+    const auto tight = run(d, thin, 1.0, "levermore-pomraning", r2, 1e-6);
+    const int picard = r1.values()["diffusion"]["flux_limiter"][0]["picard_iterations"].get<int>();
+    double d_loose = 0.0, d_p1 = 0.0, peak = 0.0;
+    for_each_cell(d.local(), [&](int i, int j, int k) {
+        d_loose = std::max(d_loose, std::abs(loose.fluence[0](i, j, k) - tight.fluence[0](i, j, k)));
+        d_p1 = std::max(d_p1, std::abs(p1.fluence[0](i, j, k) - tight.fluence[0](i, j, k)));
+        peak = std::max(peak, tight.fluence[0](i, j, k));
+    });
+    d_loose = test::global_max(d_loose, d.comm()) / test::global_max(peak, d.comm());
+    d_p1 = test::global_max(d_p1, d.comm()) / test::global_max(peak, d.comm());
+    if (test::world_rank() == 0)
+        std::printf("thin cube: %d Picard iterations at 1e-2 (%d at 1e-6); max |loose - tight| / max %.2e, "
+                    "|P1 - tight| / max %.2e\n",
+                    picard, r2.values()["diffusion"]["flux_limiter"][0]["picard_iterations"].get<int>(), d_loose,
+                    d_p1);
+    EXPECT_GT(picard, 1);
+    EXPECT_GT(d_p1, 1e-2);
+    EXPECT_LT(d_loose, 1e-2);
+}
+
 TEST(FluxLimiter, AgreesWithP1InsideAThickMedium) {
     // Optical thickness 64 across the cube (kappa_tr h = 4 with g = 0): R << 1 inside.
     Decomposition d(MPI_COMM_WORLD, {kN, kN, kN});
@@ -95,7 +131,7 @@ TEST(FluxLimiter, AgreesWithP1InsideAThickMedium) {
     diff = test::global_max(diff, d.comm());
     peak = test::global_max(peak, d.comm());
     if (test::world_rank() == 0) std::printf("thick cube interior: max |FLD - P1| / max = %.2e\n", diff / peak);
-    EXPECT_LT(diff / peak, 5e-3);  // measured 1.3e-3
+    EXPECT_LT(diff / peak, 5e-3);  // measured 1.7e-3 (1.3e-3 with the damped iteration)
 }
 
 }  // namespace
