@@ -2,8 +2,11 @@
 
 #include <algorithm>
 #include <numbers>
+#include <string>
+#include <vector>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "solvers/diffusion/band_groups.h"
 #include "solvers/diffusion/linear_solve.h"
@@ -86,7 +89,16 @@ public:
                 ScopedTimer t(ctx.report, "sources");
                 p = diffusion::make_problem(d, m, ctx.light, sources, group, opt_.delta_scaling);
             }
-            const auto res = diffusion::solve_diffusion(d, p, solve_opt, ctx.report);
+            const auto res = [&] {
+                if (linear) return diffusion::solve_diffusion(d, p, solve_opt, ctx.report);
+                try {  // the limiter's failure names the bands it was solving
+                    return diffusion::solve_diffusion(d, p, solve_opt, ctx.report);
+                } catch (const Error& e) {
+                    std::vector<std::string> names;
+                    for (const auto& use : group.bands) names.push_back(m.bands[static_cast<size_t>(use.band)].name);
+                    throw Error(fmt::format("{} {}: {}", names.size() == 1 ? "band" : "bands", fmt::join(names, ", "), e.what()));
+                }
+            }();
             // Solved only where something scatters (an empty region, or no light: none).
             for (const auto& st : res.stats) solves += st.iterations > 0 ? 1 : 0;
             ScopedTimer bands_timer(ctx.report, "bands");  // each band's fields from the solutions and the forward peak

@@ -105,7 +105,8 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
 
 // Flux-limited diffusion (flux_limiter.h) for right-hand side r alone (lambda depends on U):
 // fixed-point iteration on kappa_eff = kappa_tr / (3 lambda), lambda = lambda(R) of the previous
-// iterates, until the largest change of U relative to max U is below opt.limiter_tolerance.
+// iterates, until the largest change of U relative to max U is below opt.limiter_tolerance
+// (twice in a row after the first iteration).
 void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t r,
                        const DiffusionOptions& opt, Report& report, DiffusionResult& out) {
     DiffusionProblem q;  // p with right-hand side r only (every member but Q0 and G copied)
@@ -126,8 +127,8 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
     // undamped: the first step is then a plain Picard step. A damped first step (the old
     // lambda <- (lambda + lambda(R)) / 2) can leave every cell's kappa_tr / (3 lambda) below the
     // cap's floor, so U does not move and the change test stops far from the fixed point
-    // (test_flux_limiter.cpp, the thin cube). On the cumulus at tolerance 1e-3: 11 Picard
-    // iterations and 1.8e-4 rel. L2 from the fixed point, against 31 and 3.6e-4 damped.
+    // (test_flux_limiter.cpp, the thin cube). On the cumulus at tolerance 1e-3: 12 iterations
+    // and 1.4e-4 rel. L2 from the fixed point, against 31 and 3.6e-4 damped.
     AndersonMixer mixer(d.comm(), 5, 1.0);
     const double lambda_min = levermore_pomraning(kMaxKnudsen);
     std::vector<double> lambda, target;  // lambda_n and lambda(R(U_n)) of the cells with kappa_tr > 0
@@ -166,12 +167,24 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
         });
         MPI_Allreduce(local, global, 2, MPI_DOUBLE, MPI_MAX, d.comm());
         history.push_back(global[1] > 0.0 ? global[0] / global[1] : 0.0);
-        converged = history.back() < opt.limiter_tolerance;
+        // The first step is plain Picard from P1: its change is the fixed-point residual. Later
+        // Anderson steps mix the history, and a single small change can be luck in an iteration
+        // that wanders (no delta scaling, g = 0.85: changes between 2e-3 and 1e-1 for 80
+        // iterations, one at 6.2e-3 among them): those need two in a row.
+        const size_t h = history.size();
+        converged = history[h - 1] < opt.limiter_tolerance &&
+                    (h == 1 || history[h - 2] < opt.limiter_tolerance);
     }
-    if (!converged && opt.limiter_iterations > 0)
-        throw Error(fmt::format("flux-limited diffusion did not converge in {} Picard iterations "
-                                "(model.diffusion.limiter_iterations); relative changes of U: {:.2e}",
-                                opt.limiter_iterations, fmt::join(history, ", ")));
+    if (!converged && opt.limiter_iterations > 0) {
+        const size_t h = history.size();
+        const std::string changes =
+            h <= 10 ? fmt::format("{:.2e}", fmt::join(history, ", "))
+                    : fmt::format("{:.2e}, ..., {:.2e}", fmt::join(history.begin(), history.begin() + 3, ", "),
+                                  fmt::join(history.end() - 6, history.end(), ", "));
+        throw Error(fmt::format("flux-limited diffusion did not converge to limiter_tolerance = {:g} in {} "
+                                "iterations (model.diffusion.limiter_iterations); relative changes of U: {}",
+                                opt.limiter_tolerance, opt.limiter_iterations, changes));
+    }
     report.values()["diffusion"]["flux_limiter"].push_back(
         {{"picard_iterations", history.size()}, {"linear_iterations", linear_iterations},
          {"relative_changes", history}, {"anderson_restarts", mixer.restarts()}});
