@@ -47,6 +47,11 @@ AndersonMixer::AndersonMixer(MPI_Comm comm, int depth, double beta) : comm_(comm
     if (!(beta > 0.0 && beta <= 1.0)) throw Error("Anderson acceleration: the mixing must be in (0, 1]");
 }
 
+void AndersonMixer::set_mixing(double beta) {
+    if (!(beta > 0.0 && beta <= 1.0)) throw Error("Anderson acceleration: the mixing must be in (0, 1]");
+    beta_ = beta;
+}
+
 std::vector<double> AndersonMixer::next(const std::vector<double>& x, const std::vector<double>& g) {
     if (x.size() != g.size() || (!x_prev_.empty() && x.size() != x_prev_.size()))
         throw Error("Anderson acceleration: the vector changed length between iterations");

@@ -25,6 +25,9 @@ public:
     // Given x_k and g = G(x_k) (this rank's parts, same length), returns x_{k+1}. Collective.
     std::vector<double> next(const std::vector<double>& x, const std::vector<double>& g);
 
+    // The mixing of the following steps, in (0, 1].
+    void set_mixing(double beta);
+
     // Columns used in the last step (0 while the history is empty or after a restart).
     int columns_used() const { return used_; }
     int restarts() const { return restarts_; }

@@ -66,7 +66,7 @@ struct DiffusionOptions {
                                       // forward-scattered source) to 0; counts are reported
     bool delta_scaling = true;        // delta-Eddington optics for the P1 solve (solvers/diffusion)
     std::string flux_limiter = "none";  // none | levermore-pomraning (flux-limited diffusion)
-    int limiter_iterations = 30;      // Picard iterations of the flux limiter at most
+    int limiter_iterations = 50;      // iterations of the flux limiter at most
     double limiter_tolerance = 1e-2;  // stop when max |ΔU| / max U falls below this
     // solver = petsc: PETSc options for its KSP/PC/DM (prefix "diffusion_"), e.g.
     // "-diffusion_pc_type mg -diffusion_pc_mg_levels 3 -diffusion_pc_mg_galerkin both".

@@ -70,6 +70,16 @@ TEST(Anderson, DepthZeroIsTheDampedIteration) {
     }
 }
 
+TEST(Anderson, MixingChangedMidwayIsUsedFromTheNextStep) {
+    // Depth 0: x1 = x0 + 1.0 f0, then x2 = x1 + 0.25 f1.
+    AndersonMixer aa(MPI_COMM_WORLD, 0, 1.0);
+    std::vector<double> x = aa.next({0.0}, {4.0});
+    EXPECT_DOUBLE_EQ(x[0], 4.0);
+    aa.set_mixing(0.25);
+    x = aa.next(x, {8.0});
+    EXPECT_DOUBLE_EQ(x[0], 5.0);
+}
+
 TEST(Anderson, NonlinearContractionConvergesFasterThanPicard) {
     // x = cos(x) + 0.1 x^2 / (1 + x^2) per entry, coupled to its neighbour through a mean: a
     // smooth contraction. AA(5) reaches 1e-12 in fewer than a third of Picard's steps.
@@ -107,6 +117,7 @@ TEST(Anderson, RefusesBadSettingsAndChangingLengths) {
     EXPECT_THROW(AndersonMixer(MPI_COMM_WORLD, 9, 1.0), Error);
     EXPECT_THROW(AndersonMixer(MPI_COMM_WORLD, 2, 0.0), Error);
     AndersonMixer aa(MPI_COMM_WORLD, 2, 1.0);
+    EXPECT_THROW(aa.set_mixing(1.5), Error);
     EXPECT_THROW(aa.next({1.0, 2.0}, {1.0}), Error);
     aa.next({1.0, 2.0}, {0.5, 0.5});
     EXPECT_THROW(aa.next({1.0}, {1.0}), Error);
