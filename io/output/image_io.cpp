@@ -116,7 +116,11 @@ Image read_exr(const std::string& path) {
     } catch (const Error&) {
         throw;
     } catch (const std::exception& e) {
-        throw Error("cannot read image file '" + path + "': " + e.what());
+        // Not an EXR at all (OpenEXR's text then only repeats the path): name the format.
+        const bool exr = path.size() >= 4 && path.compare(path.size() - 4, 4, ".exr") == 0;
+        throw Error(exr ? "cannot read image file '" + path + "': " + e.what()
+                        : "cannot read '" + path + "' as an OpenEXR image: images are read from the .exr "
+                          "that runs write (not the .png)");
     }
 }
 

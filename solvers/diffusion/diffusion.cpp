@@ -40,7 +40,11 @@ public:
     }
     // solver = petsc: the decomposition and model.diffusion.petsc_options (linear_solve.h).
     // Warns of settings that run but rarely mean what they say.
+    void check_layout(const Decomposition& d) const override {
+        if (opt_.solver == "petsc") diffusion::check_petsc_layout(d);
+    }
     void check(const Scene&, const Decomposition& d, const Medium& m) const override {
+        check_layout(d);
         if (opt_.solver == "petsc") diffusion::check_petsc(d, opt_);
         // hypre's SMG needs a power-of-two period on a periodic axis (HYPRE_struct_ls.h, "Struct
         // SMG Solver"); otherwise it can give NaN from the first iteration (24 cells periodic in x).
@@ -52,6 +56,17 @@ public:
                                             "a periodic axis (hypre's SMG), and grid.n[{}] = {} along periodic {}; "
                                             "pfmg-pcg (the default) takes any size",
                                             opt_.solver, a, n, "xyz"[a]));
+            }
+        // PFMG alone converges slowly on a period N = 2^m M with a large odd M (hypre's manual;
+        // 47 cells periodic in x and y: no convergence in 200 iterations, 48 = 16 x 3: 20).
+        if (opt_.solver == "pfmg")
+            for (int a = 0; a < 3; ++a) {
+                int odd = d.global().size(a);
+                while (odd > 1 && odd % 2 == 0) odd /= 2;
+                if (d.periodic(a) && odd > kPfmgLargestOddPeriodFactor)
+                    log::warn("model.diffusion.solver = \"pfmg\" on periodic {} with grid.n[{}] = {} (odd factor {}): "
+                              "PFMG alone converges slowly or not at all on such periods; pfmg-pcg (the default) "
+                              "converges there", "xyz"[a], a, d.global().size(a), odd);
             }
         if (opt_.max_transport_length > 0 && opt_.max_transport_length < m.grid.h)
             log::warn("model.diffusion.max_transport_length = {:g} m is below the cell size {:g} m: every cell "
@@ -101,6 +116,7 @@ public:
             }();
             // Solved only where something scatters (an empty region, or no light: none).
             for (const auto& st : res.stats) solves += st.iterations > 0 ? 1 : 0;
+            warn_if_negative(res.stats, group, m);
             ScopedTimer bands_timer(ctx.report, "bands");  // each band's fields from the solutions and the forward peak
             const std::vector<DirectionalLight>& L = ctx.light.lights;
             std::vector<double> dT(L.size(), 0.0);  // T' - T per light at the cell, shared by the group's bands
@@ -140,6 +156,29 @@ public:
     }
 
 private:
+    // P1's U goes slightly negative at a few lit surface cells (|min U| ~ 3e-4 max U on the
+    // default cloud); beyond kNegativeWarning x max U the approximation has broken down there
+    // (no delta scaling: -0.36 x max on a 48 x 48 x 32 cloud, -5 x with the flux limiter), and
+    // the clamp to zero in the output would hide it.
+    static constexpr double kNegativeWarning = 0.05;
+    static constexpr int kPfmgLargestOddPeriodFactor = 8;
+    void warn_if_negative(const std::vector<diffusion::SolveStats>& stats, const diffusion::BandGroup& group,
+                          const Medium& m) const {
+        for (const auto& st : stats) {
+            if (!(st.min_U < -kNegativeWarning * st.max_U)) continue;
+            std::vector<std::string> names;
+            for (const auto& use : group.bands) names.push_back(m.bands[static_cast<size_t>(use.band)].name);
+            log::warn("diffusion ({} {}): U is negative in {} cells, down to {:.3g} against a largest U of {:.3g}{}: "
+                      "P1 does not hold there (a first-scatter flux source too strong for it{}), and fluence_diffuse "
+                      "is unreliable in and around those cells",
+                      names.size() == 1 ? "band" : "bands", fmt::join(names, ", "),
+                      st.negative_boundary_cells + st.negative_interior_cells, st.min_U, st.max_U,
+                      opt_.clamp_negative ? " (set to 0 in the output: model.diffusion.clamp_negative)" : "",
+                      opt_.delta_scaling ? "" : "; model.diffusion.delta_scaling = true reduces it");
+            return;
+        }
+    }
+
     DiffusionOptions opt_;
 };
 

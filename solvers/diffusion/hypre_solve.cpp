@@ -167,8 +167,9 @@ LinearSolveOutput solve_with_hypre(const Decomposition& d, const Assembler& asse
             }
             throw Error(fmt::format(
                 "diffusion: {} did not reach the relative residual {:.1e}: {} ({} iterations, "
-                "true residual {:.3e}; restarts at {}); history from zero, iteration: true "
-                "residual: {}",
+                "true residual {:.3e}; true residual at the end of each round (the solver restarts "
+                "from its last iterate while the recursive residual says done and the true one does "
+                "not), iteration: {}); history from zero, iteration: true residual: {}",
                 opt.solver, opt.tolerance, why, st.iterations, st.true_residual,
                 format_history(rounds), format_history(history)));
         }

@@ -45,6 +45,8 @@ LinearSolveOutput solve_with_petsc(const Decomposition& d, const Assembler& asse
 // option that fails. What only KSPSetUp or KSPSolve read is checked by the solve, which also
 // refuses options that no object has read by the end of its first KSPSolve.
 void check_petsc(const Decomposition& d, const DiffusionOptions& opt);
+// The decomposition part of check_petsc (slabs along z), without communication.
+void check_petsc_layout(const Decomposition& d);
 
 // "iteration: residual" pairs as one line, for error messages.
 std::string format_history(const std::vector<std::pair<int, double>>& history);

@@ -150,8 +150,12 @@ const char* const kNeedsSlabs =
 
 }  // namespace
 
-void check_petsc(const Decomposition& d, const DiffusionOptions& opt) {
+void check_petsc_layout(const Decomposition& d) {
     if (!d.is_slab_z()) throw Error(kNeedsSlabs);
+}
+
+void check_petsc(const Decomposition& d, const DiffusionOptions& opt) {
+    check_petsc_layout(d);
     if (opt.petsc_options.empty()) return;
     const petsc::OptionsText text = petsc::read_options_text(opt.petsc_options);
     if (!text.stray.empty())
@@ -161,8 +165,11 @@ void check_petsc(const Decomposition& d, const DiffusionOptions& opt) {
     // The stopping test is the model's (the TRUE relative residual, checked after the solve):
     // options that would change it would only turn into a "did not reach" error.
     for (const petsc::Option& o : text.options) {
-        const char* owner = o.name == "-diffusion_ksp_rtol" || o.name == "-diffusion_ksp_atol"
-                                ? "model.diffusion.tolerance (the relative residual every solve reaches)"
+        const bool stop_test = o.name == "-diffusion_ksp_rtol" || o.name == "-diffusion_ksp_atol" ||
+                               o.name == "-diffusion_ksp_norm_type" ||
+                               o.name == "-diffusion_ksp_converged_use_initial_residual_norm" ||
+                               o.name == "-diffusion_ksp_converged_use_min_initial_residual_norm";
+        const char* owner = stop_test ? "model.diffusion.tolerance (the relative residual every solve reaches)"
                             : o.name == "-diffusion_ksp_max_it" ? "model.diffusion.max_iterations"
                                                                 : nullptr;
         if (owner) throw Error(fmt::format("{}: '{}' is set by {}; leave it out of petsc_options", kKey, o.name, owner));

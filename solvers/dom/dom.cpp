@@ -69,8 +69,9 @@ public:
     // 31 vectors of all moments (restart 30).
     // Before the light pass: the decomposition the sweeps need, and diamond with DSA on cells too
     // thick for it (check_diamond_dsa, from the medium: kappa* = (1 - a f) rho sigma_t of every band).
+    void check_layout(const Decomposition& d) const override { dom::check_sweep_decomposition(d); }
     void check(const Scene&, const Decomposition& d, const Medium& m) const override {
-        dom::check_sweep_decomposition(d);
+        check_layout(d);
         for (const std::string& face : opt_.reflective)  // "x-" ... "z+", validated with the options
             if (d.periodic(face[0] - 'x'))
                 throw Error(fmt::format("dom: face {} cannot be both reflective and periodic", face));

@@ -28,6 +28,7 @@ public:
         return (186.0 + 8.0 * 6 * opt_.k * opt_.k) * static_cast<double>(d.local().cells());
     }
     // Before the light pass: what the map sweeps need of the decomposition (and odd p's warning).
+    void check_layout(const Decomposition& d) const override { check_decomposition(d); }
     void check(const Scene&, const Decomposition& d, const Medium&) const override {
         check_decomposition(d);
         if (opt_.p % 2 == 1 && (d.periodic(0) || d.periodic(1)) && d.rank() == 0)

@@ -31,6 +31,7 @@ public:
         v["level_widths_m"] = widths;
     }
 
+    void check_layout(const Decomposition& d) const override { psf::check_decomposition(d); }
     void check(const Scene&, const Decomposition& d, const Medium&) const override { psf::check_decomposition(d); }
     bool renders_image() const override { return true; }
     // The Gaussian pyramids: ~30 bytes per local cell per light volume (light terms x bands of

@@ -146,9 +146,12 @@ void info(const RunOptions& opts, int plan_ranks) {
 
     // The checks a run makes once the density exists, before its light pass (pipeline.cpp): a
     // scene a run would refuse gets the run's one-line error and no description.
-    check_light_method(d, s.light.method);
+    // Planned: the checks of the decomposition alone are made on the plan, as on its N ranks.
+    const auto model = make_model(s.model);
+    check_light_method(layout, s.light.method);
+    if (plan) model->check_layout(*plan);
     check_volume_sources(volume_sources(s), m.rho, d);
-    make_model(s.model)->check(s, d, m);
+    model->check(s, d, m);
     check_lights_leave(d, make_lights(s));  // after the model's own, more specific refusals
 
     say_grid();
@@ -185,9 +188,9 @@ void info(const RunOptions& opts, int plan_ranks) {
     say(comm, "models in this build: {}; this scene is {}", fmt::format("{}", fmt::join(available_models(), ", ")), advice);
     say(comm, "model asked for: '{}'", s.model.name);
     if (plan)
-        say(comm, "planned for {} ranks from one process: the checks that depend on how the ranks split the "
-                  "grid (the light method on an x or y split, dom on a periodic split axis) are made by "
-                  "`mpiexec -n {} nimbus info`", plan_ranks, plan_ranks);
+        say(comm, "planned for {} ranks from one process: the process grid was checked as that run checks "
+                  "it; what needs the ranks themselves (the memory each machine has) is checked by "
+                  "`mpiexec -n {} nimbus info` there", plan_ranks, plan_ranks);
 }
 
 }  // namespace

@@ -87,6 +87,10 @@ public:
     // reason known before the light pass (limits, unsupported combinations), so that `run`
     // fails before its costly phases and `info` fails on the same scenes.
     virtual void check(const Scene& /*s*/, const Decomposition& /*d*/, const Medium& /*m*/) const {}
+    // The part of check() that depends on the decomposition alone (process grid, periodic axes
+    // split over ranks). No communication: `nimbus info --ranks N` calls it on the planned
+    // decomposition of N ranks, which has no communicator. check() makes it too.
+    virtual void check_layout(const Decomposition& /*d*/) const {}
 };
 
 // Zero-initialized fluence fields for every band on d's local box (+1 ghost).

@@ -111,6 +111,13 @@ expect_error 'model.diffusion.solver = "smg-pcg" needs a power-of-two number of 
   "${small[@]}" --set 'model.name="diffusion"' --set 'model.diffusion.solver="smg-pcg"' --set 'grid.periodic=[true,false,false]'
 SUB=info expect_error 'model.diffusion.solver = "smg" needs a power-of-two number of cells' \
   "${small[@]}" --set 'model.name="diffusion"' --set 'model.diffusion.solver="smg"' --set 'grid.periodic=[false,true,false]'
+# info --ranks checks the process grid of the planned run as that run does (no mpiexec needed).
+SUB=info expect_error 'model.diffusion.solver = "petsc" needs slabs along z' "${small[@]}" --ranks 2 \
+  --set 'model.name="diffusion"' --set 'model.diffusion.solver="petsc"' --set "grid.process_grid=[2,1,1]"
+SUB=info expect_error 'model dom: grid.periodic axis x must not be split over ranks' "${small[@]}" --ranks 2 \
+  --set 'model.name="dom"' --set 'grid.periodic=[true,false,false]' --set "grid.process_grid=[2,1,1]" --set 'light.method="exact"'
+SUB=info expect_error 'light.method = "sweep" sweeps along z and needs slabs along z' "${small[@]}" --ranks 2 \
+  --set 'light.method="sweep"' --set "grid.process_grid=[1,2,1]"
 # psf needs a light to blur: a clear message, not its internal volume count.
 if "$nimbus" info --set "grid.n=[8,8,8]" 2>&1 | grep -q "models in this build:.*psf"; then
   expect_error "model psf: the scene has no light to blur" "${small[@]}" --set 'model.name="psf"' --set "sun.enabled=false" --set "sky.radiance=[]"

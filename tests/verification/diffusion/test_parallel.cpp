@@ -211,6 +211,9 @@ TEST(DiffusionParallel, BadPetscOptionsAreOneCollectiveErrorNamingTheOption) {
     test::expect_collective_error([&] { make_diffusion_model(opt)->check(scene, d, m); },
                                   "model.diffusion.petsc_options: '-diffusion_ksp_rtol' is set by "
                                   "model.diffusion.tolerance");
+    opt.petsc_options = "-diffusion_ksp_norm_type none";  // no norm: PETSc would run to max_it unchecked
+    test::expect_collective_error([&] { make_diffusion_model(opt)->check(scene, d, m); },
+                                  "'-diffusion_ksp_norm_type' is set by model.diffusion.tolerance");
     opt.petsc_options = "-diffusion_ksp_max_it 3";
     test::expect_collective_error([&] { make_diffusion_model(opt)->check(scene, d, m); },
                                   "'-diffusion_ksp_max_it' is set by model.diffusion.max_iterations");
