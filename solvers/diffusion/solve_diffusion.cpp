@@ -13,6 +13,7 @@
 #include "src/core/anderson.h"
 #include "src/core/error.h"
 #include "src/core/halo.h"
+#include "src/core/log.h"
 #include "src/core/report.h"
 
 namespace nimbus::diffusion {
@@ -180,6 +181,10 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
         const size_t h = history.size();
         converged = history[h - 1] < opt.limiter_tolerance &&
                     (h == 1 || history[h - 2] < opt.limiter_tolerance);
+        log::debug("diffusion: flux limiter, right-hand side {} iteration {}: relative change of U {:.3e} "
+                   "({} Anderson columns, mixing {:g}, {} {} iterations)",
+                   r, h, history.back(), mixer.columns_used(), it < kUndampedIterations ? 1.0 : kLateMixing,
+                   res.stats[0].iterations, opt.solver);
     }
     if (!converged && opt.limiter_iterations > 0) {
         const size_t h = history.size();
@@ -192,7 +197,8 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
                                 opt.limiter_tolerance, opt.limiter_iterations, changes));
     }
     report.values()["diffusion"]["flux_limiter"].push_back(
-        {{"picard_iterations", history.size()}, {"linear_iterations", linear_iterations},
+        {{"picard_iterations", history.size()}, {"linear_solves", history.size() + 1},
+         {"linear_iterations", linear_iterations},
          {"relative_changes", history}, {"anderson_restarts", mixer.restarts()}});
     out.region = res.region;
     out.U.push_back(std::move(res.U[0]));
