@@ -37,11 +37,16 @@ void DiffusionOptions::validate() const {
     if (limiter_iterations < 1) throw Error("model.diffusion.limiter_iterations must be >= 1");
     if (!(limiter_tolerance > 0 && limiter_tolerance < 1)) throw Error("model.diffusion.limiter_tolerance must be in (0, 1)");
     // Like petsc_options: a limiter setting without the limiter would be ignored silently.
+    // (A value other than the default is what is seen: the default itself passes.)
     const DiffusionOptions defaults;
-    if (flux_limiter == "none" && (limiter_iterations != defaults.limiter_iterations ||
-                                   limiter_tolerance != defaults.limiter_tolerance))
-        throw Error("model.diffusion.limiter_iterations and limiter_tolerance are read only with "
-                    "flux_limiter = \"levermore-pomraning\"");
+    if (flux_limiter == "none" && limiter_iterations != defaults.limiter_iterations)
+        throw Error(fmt::format("model.diffusion.limiter_iterations = {} is read only with flux_limiter = "
+                                "\"levermore-pomraning\"",
+                                limiter_iterations));
+    if (flux_limiter == "none" && limiter_tolerance != defaults.limiter_tolerance)
+        throw Error(fmt::format("model.diffusion.limiter_tolerance = {:g} is read only with flux_limiter = "
+                                "\"levermore-pomraning\"",
+                                limiter_tolerance));
     if (!petsc_options.empty() && solver != "petsc")
         throw Error("model.diffusion.petsc_options is read only with solver = \"petsc\"");
 }

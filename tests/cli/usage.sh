@@ -38,7 +38,8 @@ check "option without command" 1 "unknown option '--bogus' and no command; comma
 check "empty --out" 1 "nimbus: error: --out: the folder name is empty" run --out ""
 check "info --out" 1 "nimbus: error: --out: info writes no files" info --out "$tmp" "${small[@]}"
 check "int option beyond int" 1 "model.diffusion.max_iterations = 99999999999 is too large (at most 2147483647)" info --set "model.diffusion.max_iterations=99999999999"
-check "limiter option without limiter" 1 'limiter_iterations and limiter_tolerance are read only with flux_limiter = "levermore-pomraning"' info --set 'model.name="diffusion"' --set "model.diffusion.limiter_iterations=5"
+check "limiter option without limiter" 1 'model.diffusion.limiter_iterations = 5 is read only with flux_limiter = "levermore-pomraning"' info --set 'model.name="diffusion"' --set "model.diffusion.limiter_iterations=5"
+check "limiter option blamed" 1 '\-\-set model.diffusion.limiter_tolerance=0.5: model.diffusion.limiter_tolerance = 0.5 is read only' info --set 'model.name="diffusion"' --set 'model.diffusion.flux_limiter="none"' --set "model.diffusion.limiter_tolerance=0.5"
 # P1 far below zero (no delta scaling: the first-scatter flux source overwhelms it) is said, not hidden by the clamp.
 check "negative U warned" 0 "diffusion (bands r, g, b): U is negative in .* cells" run --set 'model.name="diffusion"' \
   --set "grid.n=[24,24,16]" --set grid.cell_size=100 --set model.diffusion.delta_scaling=false --set output.image=false --out "$tmp/neg"
