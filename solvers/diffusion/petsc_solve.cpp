@@ -313,11 +313,17 @@ LinearSolveOutput solve_with_petsc(const Decomposition& d, const Assembler& asse
             KSPGetType(ksp.ksp, &type);
             KSPConvergedReason reason = KSP_CONVERGED_ITERATING;
             KSPGetConvergedReason(ksp.ksp, &reason);
+            // CONVERGED_ITS: a fixed number of iterations without a residual test (preonly, or
+            // richardson without norms): "converged" only in PETSc's sense.
+            const std::string why = reason == KSP_CONVERGED_ITS
+                                        ? "CONVERGED_ITS (a fixed number of iterations, no residual test)"
+                                        : KSPConvergedReasons[reason];
             throw Error(fmt::format(
                 "diffusion: petsc {} did not reach the relative residual {:.1e}: it stopped with {} after {} "
-                "iterations (true residual {:.3e}); history, iteration: relative residual: {}",
-                type ? type : "KSP", opt.tolerance, KSPConvergedReasons[reason], st.iterations, st.true_residual,
-                format_history(history)));
+                "iterations (true residual {:.3e}); {}",
+                type ? type : "KSP", opt.tolerance, why, st.iterations, st.true_residual,
+                history.empty() ? std::string("no residual history (this KSP computed no residual norms)")
+                                : "history, iteration: relative residual: " + format_history(history)));
         }
         run_collective(comm, [&] {
             const PetscScalar*** xv;
