@@ -159,7 +159,7 @@ public:
 private:
     // P1's U goes slightly negative at a few lit surface cells (|min U| ~ 3e-4 max U on the
     // default cloud); beyond kNegativeWarning x max U the approximation has broken down there
-    // (no delta scaling: -0.36 x max on a 48 x 48 x 32 cloud, -5 x with the flux limiter), and
+    // (no delta scaling: -0.24 x max on a 48 x 48 x 32 cloud, -5 x with the flux limiter), and
     // the clamp to zero in the output would hide it.
     static constexpr double kNegativeWarning = 0.05;
     static constexpr int kPfmgLargestOddPeriodFactor = 8;
