@@ -46,28 +46,25 @@ public:
     void check(const Scene&, const Decomposition& d, const Medium& m) const override {
         check_layout(d);
         if (opt_.solver == "petsc") diffusion::check_petsc(d, opt_);
-        // hypre's SMG needs a power-of-two period on a periodic axis (HYPRE_struct_ls.h, "Struct
-        // SMG Solver"); otherwise it can give NaN from the first iteration (24 cells periodic in x).
-        if (opt_.solver == "smg" || opt_.solver == "smg-pcg")
-            for (int a = 0; a < 3; ++a) {
-                const int n = d.global().size(a);
-                if (d.periodic(a) && n > 1 && (n & (n - 1)) != 0)
-                    throw Error(fmt::format("model.diffusion.solver = \"{}\" needs a power-of-two number of cells on "
-                                            "a periodic axis (hypre's SMG), and grid.n[{}] = {} along periodic {}; "
-                                            "pfmg-pcg (the default) takes any size",
-                                            opt_.solver, a, n, "xyz"[a]));
-            }
-        // PFMG alone converges slowly on a period N = 2^m M with a large odd M (hypre's manual;
-        // 47 cells periodic in x and y: no convergence in 200 iterations, 48 = 16 x 3: 20).
-        if (opt_.solver == "pfmg")
-            for (int a = 0; a < 3; ++a) {
-                int odd = d.global().size(a);
-                while (odd > 1 && odd % 2 == 0) odd /= 2;
-                if (d.periodic(a) && odd > kPfmgLargestOddPeriodFactor)
-                    log::warn("model.diffusion.solver = \"pfmg\" on periodic {} with grid.n[{}] = {} (odd factor {}): "
-                              "PFMG alone converges slowly or not at all on such periods; pfmg-pcg (the default) "
-                              "converges there", "xyz"[a], a, d.global().size(a), odd);
-            }
+        // On a periodic axis of N = 2^m M cells (M odd): hypre's SMG needs M = 1 (HYPRE_struct_ls.h,
+        // "Struct SMG Solver"; 24 cells periodic in x gave NaN from the first iteration), and PFMG
+        // alone converges slowly for a large M (47 cells periodic in x and y: no convergence in 200
+        // iterations; 48 = 16 x 3: 20).
+        for (int a = 0; a < 3; ++a) {
+            const int n = d.global().size(a);
+            int odd = n;
+            while (odd > 1 && odd % 2 == 0) odd /= 2;
+            if (!d.periodic(a) || odd == 1) continue;
+            if (opt_.solver == "smg" || opt_.solver == "smg-pcg")
+                throw Error(fmt::format("model.diffusion.solver = \"{}\" needs a power-of-two number of cells on "
+                                        "a periodic axis (hypre's SMG), and grid.n[{}] = {} along periodic {}; "
+                                        "pfmg-pcg (the default) takes any size",
+                                        opt_.solver, a, n, "xyz"[a]));
+            if (opt_.solver == "pfmg" && odd > kPfmgLargestOddPeriodFactor)
+                log::warn("model.diffusion.solver = \"pfmg\" on periodic {} with grid.n[{}] = {} (odd factor {}): "
+                          "PFMG alone converges slowly or not at all on such periods; pfmg-pcg (the default) "
+                          "converges there", "xyz"[a], a, n, odd);
+        }
         if (opt_.max_transport_length > 0 && opt_.max_transport_length < m.grid.h)
             log::warn("model.diffusion.max_transport_length = {:g} m is below the cell size {:g} m: in every cell "
                       "whose transport mean free path is longer (kappa_tr below 1/ℓ) light then diffuses less "
@@ -110,9 +107,7 @@ public:
                 try {  // the limiter's failure names the bands it was solving
                     return diffusion::solve_diffusion(d, p, solve_opt, ctx.report);
                 } catch (const Error& e) {
-                    std::vector<std::string> names;
-                    for (const auto& use : group.bands) names.push_back(m.bands[static_cast<size_t>(use.band)].name);
-                    throw Error(fmt::format("{} {}: {}", names.size() == 1 ? "band" : "bands", fmt::join(names, ", "), e.what()));
+                    throw Error(fmt::format("{}: {}", band_names(group, m), e.what()));
                 }
             }();
             // Solved only where something scatters (an empty region, or no light: none).
@@ -161,19 +156,22 @@ private:
     // default cloud); beyond kNegativeWarning x max U the approximation has broken down there
     // (no delta scaling: -0.24 x max on a 48 x 48 x 32 cloud, -5 x with the flux limiter), and
     // the clamp to zero in the output would hide it.
+    // "band r" or "bands r, g, b": the bands a group's solve serves, for messages.
+    static std::string band_names(const diffusion::BandGroup& group, const Medium& m) {
+        std::vector<std::string> names;
+        for (const auto& use : group.bands) names.push_back(m.bands[static_cast<size_t>(use.band)].name);
+        return fmt::format("{} {}", names.size() == 1 ? "band" : "bands", fmt::join(names, ", "));
+    }
     static constexpr double kNegativeWarning = 0.05;
     static constexpr int kPfmgLargestOddPeriodFactor = 8;
     void warn_if_negative(const std::vector<diffusion::SolveStats>& stats, const diffusion::BandGroup& group,
                           const Medium& m) const {
         for (const auto& st : stats) {
             if (!(st.min_U < -kNegativeWarning * st.max_U)) continue;
-            std::vector<std::string> names;
-            for (const auto& use : group.bands) names.push_back(m.bands[static_cast<size_t>(use.band)].name);
-            log::warn("diffusion ({} {}): U is negative in {} cells, down to {:.3g} against a largest U of {:.3g}{}: "
+            log::warn("diffusion ({}): U is negative in {} cells, down to {:.3g} against a largest U of {:.3g}{}: "
                       "P1 does not hold there (a first-scatter flux source too strong for it{}), and fluence_diffuse "
                       "is unreliable in and around those cells",
-                      names.size() == 1 ? "band" : "bands", fmt::join(names, ", "),
-                      st.negative_boundary_cells + st.negative_interior_cells, st.min_U, st.max_U,
+                      band_names(group, m), st.negative_boundary_cells + st.negative_interior_cells, st.min_U, st.max_U,
                       opt_.clamp_negative ? " (set to 0 in the output: model.diffusion.clamp_negative)" : "",
                       opt_.delta_scaling ? "" : "; model.diffusion.delta_scaling = true reduces it");
             return;
