@@ -84,10 +84,30 @@ public:
     bool renders_image() const override { return opt_.image; }
     // The limit trace_forward enforces, before the light pass.
     void check(const Scene& s, const Decomposition& d, const Medium&) const override {
+        check_layout(d);
         mc::check_kernel(d.comm(), opt_);
         mc::check_replicated_memory(d.global().hi, replicated_bytes(s, d), opt_);
     }
     double memory_bytes(const Scene& s, const Decomposition& d, int) const override { return replicated_bytes(s, d); }
+    // A round traces one batch per rank (forward.h), so ranks beyond the batch count, or in the
+    // last round of a count that is not a multiple of the ranks, wait: said before the run.
+    void check_layout(const Decomposition& d) const override {
+        const int ranks = d.size();
+        const double busy = mc::busy_fraction(opt_.batches, ranks);
+        if (busy >= mc::kBusyFractionToWarn) return;
+        const int rounds = (opt_.batches + ranks - 1) / ranks;
+        const int last = opt_.batches - (rounds - 1) * ranks;  // batches of the last round
+        const int better = std::min(rounds * ranks, MonteCarloOptions::kMaxBatches);
+        log::warn("model.montecarlo.batches = {} on {} ranks: a rank traces one batch per round, so {} ranks "
+                  "trace nothing{} and the ranks trace {:.0f}% of the time; {}",
+                  opt_.batches, ranks, ranks - last, rounds == 1 ? "" : fmt::format(" in the last of {} rounds", rounds),
+                  100.0 * busy,
+                  better > opt_.batches
+                      ? fmt::format("batches = {} (a multiple of the ranks) traces the same photons with every "
+                                    "rank busy", better)
+                      : fmt::format("at most {} batches: the ranks beyond that stay idle",
+                                    MonteCarloOptions::kMaxBatches));
+    }
 
     Image render(const SolveContext& ctx) override {
         ScopedTimer timer(ctx.report, "montecarlo/render");

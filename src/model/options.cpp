@@ -14,7 +14,8 @@ void MonteCarloOptions::validate() const {
     if (!(time_budget >= 0 && std::isfinite(time_budget))) throw Error("model.montecarlo.time_budget must be >= 0 seconds");
     if (!(target_rel_error >= 0 && target_rel_error < 1))
         throw Error("model.montecarlo.target_rel_error must be in [0, 1)");
-    if (batches < 2 || batches > 4096) throw Error("model.montecarlo.batches must be in [2, 4096]");
+    if (batches < 2 || batches > kMaxBatches)
+        throw Error(fmt::format("model.montecarlo.batches must be in [2, {}]", kMaxBatches));
     if (!(roulette_weight > 0 && roulette_weight < 1))
         throw Error("model.montecarlo.roulette_weight must be in (0, 1)");
     if (!(max_replicated_memory_gb > 0 && std::isfinite(max_replicated_memory_gb))) throw Error("model.montecarlo.max_replicated_memory_gb must be > 0");

@@ -29,7 +29,8 @@ struct MonteCarloOptions {
     double target_rel_error = 0.0;      // stop when the relative standard error of the total
                                         // diffuse fluence falls below this (0 = off)
     std::uint64_t seed = 1;             // counter-based RNG key: same seed, same result, any rank count
-    int batches = 32;                   // batch means for the per-cell standard error (>= 2)
+    int batches = 32;                   // batch means for the per-cell standard error, 2..kMaxBatches
+    static constexpr int kMaxBatches = 4096;
     double roulette_weight = 0.05;      // Russian roulette below this weight (survival 0.5)
     double max_replicated_memory_gb = 8.0;  // the density grid is replicated on every rank
     bool image = false;                 // also path-trace the camera image

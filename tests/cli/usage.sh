@@ -51,6 +51,10 @@ out=$("$nimbus" info "${small[@]}" --log-level warn 2>"$tmp/info.err"); code=$?
 if [ $code -eq 0 ] && echo "$out" | grep -q "^grid: 12 x 12 x 8" && echo "$out" | grep -q "^model asked for:" \
    && [ ! -s "$tmp/info.err" ]; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: info to stdout, --log-level warn (exit $code)"; echo "$out" | tail -3; cat "$tmp/info.err"; fi
 check "log level after the subcommand" 0 "decomposition:" info "${small[@]}" --log-level debug
+# Monte Carlo traces one batch per rank per round: ranks that would wait are said before the run.
+check "montecarlo: idle ranks warned" 0 "batches = 32 on 64 ranks: .* so 32 ranks trace nothing .* batches = 64" info --ranks 64
+out=$("$nimbus" info --ranks 64 --set model.montecarlo.batches=128 2>&1); code=$?
+if [ $code -eq 0 ] && ! echo "$out" | grep -q "trace nothing"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: montecarlo batches a multiple of the ranks warns (exit $code)"; echo "$out" | tail -3; fi
 
 # info refuses what run refuses, with the same message.
 check "info: duplicate band name" 1 "optics\[1\].name = \"r\" repeats optics\[0\].name" info --set 'optics[1].name="r"'
