@@ -96,7 +96,9 @@ public:
         if (linear) solve_opt.clamp_negative = false;
         ctx.report.values()["diffusion"]["matrices"] = groups.size();
         int solves = 0;
-        for (const auto& group : groups) {
+        for (size_t g = 0; g < groups.size(); ++g) {
+            const auto& group = groups[g];
+            const size_t systems_before = system_count(ctx.report);
             diffusion::DiffusionProblem p;
             {
                 ScopedTimer t(ctx.report, "sources");
@@ -110,6 +112,7 @@ public:
                     throw Error(fmt::format("{}: {}", band_names(group, m), e.what()));
                 }
             }();
+            label_systems(ctx.report, systems_before, g, group, m, ctx.light.lights);
             // Solved only where something scatters (an empty region, or no light: none).
             for (const auto& st : res.stats) solves += st.iterations > 0 ? 1 : 0;
             warn_if_negative(res.stats, group, m);
@@ -161,6 +164,36 @@ private:
         std::vector<std::string> names;
         for (const auto& use : group.bands) names.push_back(m.bands[static_cast<size_t>(use.band)].name);
         return fmt::format("{} {}", names.size() == 1 ? "band" : "bands", fmt::join(names, ", "));
+    }
+    // The report's diffusion.systems entries from `from` on, one per linear solve of this group
+    // (matrix g): which bands use the right-hand side and which source terms it holds (lights by
+    // name, "sky" for its directions; volume sources as "sources[i]"), so that a solve's
+    // iterations and times can be traced to the light and bands they are for.
+    static size_t system_count(Report& report) {
+        const nlohmann::json& rec = report.values()["diffusion"];
+        return rec.contains("systems") ? rec["systems"].size() : 0;
+    }
+    static void label_systems(Report& report, size_t from, size_t g, const diffusion::BandGroup& group,
+                              const Medium& m, const std::vector<DirectionalLight>& lights) {
+        if (system_count(report) == from) return;
+        nlohmann::json& systems = report.values()["diffusion"]["systems"];
+        for (size_t e = from; e < systems.size(); ++e) {
+            const size_t rhs = systems[e]["rhs"].get<size_t>();
+            std::vector<std::string> bands, terms;
+            for (const auto& use : group.bands)
+                for (const auto& t : use.terms)
+                    if (static_cast<size_t>(t.rhs) == rhs) bands.push_back(m.bands[static_cast<size_t>(use.band)].name);
+            const std::vector<double>& weight = group.rhs_weights[rhs];
+            for (size_t t = 0; t < weight.size(); ++t) {
+                if (weight[t] == 0.0) continue;
+                std::string name = t < lights.size() ? lights[t].name : fmt::format("sources[{}]", t - lights.size());
+                if (name.starts_with("sky[")) name = "sky";
+                if (std::find(terms.begin(), terms.end(), name) == terms.end()) terms.push_back(std::move(name));
+            }
+            systems[e]["matrix"] = g;
+            systems[e]["bands"] = bands;
+            systems[e]["terms"] = terms;
+        }
     }
     static constexpr double kNegativeWarning = 0.05;
     static constexpr int kPfmgLargestOddPeriodFactor = 8;

@@ -24,9 +24,12 @@ double transport_cap(const SolveRegion& region, const DiffusionProblem& p, const
     return opt.max_transport_length > 0.0 ? opt.max_transport_length : default_transport_length(region, p);
 }
 
-// One linear solve of p (all right-hand sides share the matrix).
+// One linear solve of p (all right-hand sides share the matrix). Its report entries
+// (diffusion.systems) name the right-hand side, first_rhs + r, and the flux limiter's iteration
+// (0: the P1 start) when limiter_iteration >= 0.
 DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
-                             const DiffusionOptions& opt, Report& report) {
+                             const DiffusionOptions& opt, Report& report, size_t first_rhs = 0,
+                             int limiter_iteration = -1) {
     const size_t nrhs = p.Q0.size();
     DiffusionResult res;
     {
@@ -88,18 +91,21 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
         st.negative_boundary_cells = gneg[0];
         st.negative_interior_cells = gneg[1];
         if (opt.clamp_negative && gneg[0] + gneg[1] > 0) exchange_halo(res.U[r], d);
-        rec["systems"].push_back({{"iterations", st.iterations},
-                                  {"restarts", st.restarts},
-                                  {"reported_residual", st.reported_residual},
-                                  {"true_residual", st.true_residual},
-                                  {"assemble_seconds", st.assemble_seconds},
-                                  {"setup_seconds", st.setup_seconds},
-                                  {"solve_seconds", st.solve_seconds},
-                                  {"negative_boundary_cells", st.negative_boundary_cells},
-                                  {"negative_interior_cells", st.negative_interior_cells},
-                                  {"min_U", st.min_U},
-                                  {"min_U_interior", st.min_U_interior},
-                                  {"max_U", st.max_U}});
+        nlohmann::json entry = {{"rhs", first_rhs + r},
+                                {"iterations", st.iterations},
+                                {"restarts", st.restarts},
+                                {"reported_residual", st.reported_residual},
+                                {"true_residual", st.true_residual},
+                                {"assemble_seconds", st.assemble_seconds},
+                                {"setup_seconds", st.setup_seconds},
+                                {"solve_seconds", st.solve_seconds},
+                                {"negative_boundary_cells", st.negative_boundary_cells},
+                                {"negative_interior_cells", st.negative_interior_cells},
+                                {"min_U", st.min_U},
+                                {"min_U_interior", st.min_U_interior},
+                                {"max_U", st.max_U}};
+        if (limiter_iteration >= 0) entry["limiter_iteration"] = limiter_iteration;
+        rec["systems"].push_back(std::move(entry));
     }
     return res;
 }
@@ -119,7 +125,7 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
     q.sigma_a = p.sigma_a;
     q.Q0 = {p.Q0[r]};
     q.G = {p.G[r]};
-    DiffusionResult res = solve_linear(d, q, opt, report);  // P1 with the cap: the first iterate
+    DiffusionResult res = solve_linear(d, q, opt, report, r, 0);  // P1 with the cap: the first iterate
     const double floor = 1.0 / transport_cap(res.region, p, opt);
     std::vector<double> history;
     int linear_iterations = res.stats[0].iterations;
@@ -165,7 +171,7 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
         const Field<double> previous = res.U[0];
         // The cap stays: without it the Picard iteration oscillated (no convergence in 30
         // iterations) on a cube of optical thickness 0.2, where lambda -> 1/R everywhere.
-        res = solve_linear(d, q, opt, report);
+        res = solve_linear(d, q, opt, report, r, it + 1);
         linear_iterations += res.stats[0].iterations;
         double local[2] = {0.0, 0.0}, global[2];
         for_each_cell(d.local(), [&](int i, int j, int k) {

@@ -173,6 +173,10 @@ TEST(DiffusionEmission, SourceAndSunShareSolvesAndAddUp) {
     Report r3;
     const DiffuseSolution all = run({0, 1, 2}, 1.0, 1.0, r3);
     EXPECT_EQ(r3.values()["diffusion"]["solves"].get<int>(), 2);
+    const auto& systems = r3.values()["diffusion"]["systems"];
+    ASSERT_EQ(systems.size(), 2u);
+    EXPECT_EQ(systems[0]["terms"], nlohmann::json::array({"sun"}));
+    EXPECT_EQ(systems[1]["terms"], nlohmann::json::array({"sources[0]"}));
     for (int b = 0; b < 3; ++b) {
         Report r1, rs, re;
         const DiffuseSolution one = run({b}, 1.0, 1.0, r1);

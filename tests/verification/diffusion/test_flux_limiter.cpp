@@ -111,6 +111,13 @@ TEST(FluxLimiter, StopsNearTheFixedPointWhereTheCapSetsD) {
                     picard, r2.values()["diffusion"]["flux_limiter"][0]["picard_iterations"].get<int>(), d_loose,
                     d_p1);
     EXPECT_GT(picard, 1);
+    // The report has one systems entry per linear solve: the P1 start and one per iteration.
+    const auto& systems = r1.values()["diffusion"]["systems"];
+    ASSERT_EQ(systems.size(), static_cast<size_t>(picard) + 1);
+    for (size_t e = 0; e < systems.size(); ++e) {
+        EXPECT_EQ(systems[e]["limiter_iteration"].get<int>(), static_cast<int>(e));
+        EXPECT_EQ(systems[e]["bands"], nlohmann::json::array({"gray"}));
+    }
     EXPECT_GT(d_p1, 1e-2);
     EXPECT_LT(d_loose, 1e-2);
 }

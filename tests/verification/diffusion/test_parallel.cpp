@@ -155,6 +155,17 @@ TEST(DiffusionParallel, BandsShareSolvesByLightColour) {
     Report r3;
     const DiffuseSolution all = solve({0, 1, 2}, r3);
     EXPECT_EQ(r3.values()["diffusion"]["solves"].get<int>(), 2);
+    // The report says which light each solve is for and which bands use it.
+    const auto& systems = r3.values()["diffusion"]["systems"];
+    ASSERT_EQ(systems.size(), 2u);
+    for (size_t e = 0; e < 2; ++e) {
+        EXPECT_EQ(systems[e]["matrix"].get<int>(), 0);
+        EXPECT_EQ(systems[e]["rhs"].get<size_t>(), e);
+        EXPECT_EQ(systems[e]["bands"], nlohmann::json::array({"band0", "band1", "band2"}));
+        EXPECT_FALSE(systems[e].contains("limiter_iteration"));
+    }
+    EXPECT_EQ(systems[0]["terms"], nlohmann::json::array({"sun"}));
+    EXPECT_EQ(systems[1]["terms"], nlohmann::json::array({"sky"}));
     for (int b = 0; b < 3; ++b) {
         Report r1;
         const DiffuseSolution one = solve({b}, r1);
