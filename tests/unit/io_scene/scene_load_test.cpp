@@ -98,13 +98,17 @@ void expect_same_scene(const Scene& a, const Scene& b) {
     EXPECT_EQ(a.output.image, b.output.image);
 }
 
-// Writes s, reads it back, and checks every field and the re-serialized text.
+// Writes s, reads it back, and checks every field and the re-serialized text; the same for the
+// text with each key's meaning as a comment.
 void expect_round_trip(const Scene& s) {
     const std::string text = scene_to_toml(s);
-    const Scene back = load_scene_string(text, "<round trip>");
-    expect_same_scene(s, back);
     const auto body = [](const std::string& t) { return t.substr(t.find('\n')); };  // minus the source comment
-    EXPECT_EQ(body(scene_to_toml(back)), body(text));
+    for (const TomlComments comments : {TomlComments::none, TomlComments::meanings}) {
+        SCOPED_TRACE(comments == TomlComments::none ? "without comments" : "with meanings");
+        const Scene back = load_scene_string(scene_to_toml(s, comments), "<round trip>");
+        expect_same_scene(s, back);
+        EXPECT_EQ(body(scene_to_toml(back)), body(text));
+    }
 }
 
 // Optical depth rho * sigma_t * h summed over the cells of one grid line through cell c.
