@@ -138,7 +138,9 @@ const std::vector<KeyDoc>& scene_key_docs() {
          "stop once the total diffuse power's relative standard error is below this; in [0, 1), "
          "0 = off"},
         {"model.montecarlo.seed", "RNG key: the same seed gives the same result on any rank count"},
-        {"model.montecarlo.batches", "batches for the batch-means standard errors, 2..4096"},
+        {"model.montecarlo.batches",
+         "batches for the batch-means standard errors, 2..4096; one per rank and round, so a "
+         "multiple of the rank count keeps every rank busy"},
         {"model.montecarlo.roulette_weight",
          "Russian roulette below this weight (survival 1/2), in (0, 1)"},
         {"model.montecarlo.max_replicated_memory_gb",
