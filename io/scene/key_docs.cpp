@@ -107,8 +107,8 @@ const std::vector<KeyDoc>& scene_key_docs() {
 
         {"background", "What a view ray meets behind the medium."},
         {"background.kind",
-         "color | ground: a Lambertian plane at z = 0 lit by the sun and sky, seen in the "
-         "image only (it lights no medium)"},
+         "color | ground: a Lambertian plane at z = 0 lit by the sun and sky, drawn by the ray "
+         "caster only (black in model.montecarlo's image); it lights no medium"},
         {"background.color", "radiance behind the medium, above any ground, W/(m² sr), per band"},
         {"background.ground_albedo", "ground: Lambertian albedo, in [0, 1]"},
         {"background.ground_color",
