@@ -18,7 +18,10 @@ Scene load_scene_string(const std::string& toml_text, const std::string& source_
                         const std::vector<std::string>& overrides = {});
 // The built-in default scene (scenes/default.toml compiled in).
 Scene default_scene(const std::vector<std::string>& overrides = {});
-// The effective scene as TOML text that load_scene_string reads back to an equal Scene.
-std::string scene_to_toml(const Scene& scene);
+// Whether scene_to_toml writes each key's meaning (io/scene/key_docs.h) as a comment.
+enum class TomlComments { none, meanings };
+// The effective scene as TOML text that load_scene_string reads back to an equal Scene, with
+// or without comments (the run's HDF5 output stores it without).
+std::string scene_to_toml(const Scene& scene, TomlComments comments = TomlComments::none);
 
 }  // namespace nimbus

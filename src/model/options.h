@@ -6,8 +6,9 @@
 // and writing (io/scene) and the options a model echoes and stores (options_json,
 // src/model/model.h) all come from it; tests/unit/io_scene/option_keys_test.cpp checks that
 // they agree. A new option: its member here, a line in its for_each_option, a check in
-// validate() if it has a range, a non-default value in that test, and docs/scene_reference.toml
-// regenerated (tests/unit/io_scene/scene_load_test.cpp says how).
+// validate() if it has a range, a non-default value in that test, its meaning in
+// io/scene/key_docs.cpp, and docs/scene_reference.toml regenerated
+// (tests/unit/io_scene/key_docs_test.cpp says how; it fails for an option without a meaning).
 #pragma once
 
 #include <concepts>

@@ -18,7 +18,7 @@ struct GridSpec {
     std::string unit = "m";              // m, km, cm, mm, or "custom" with unit_scale
     double unit_scale = 1.0;             // metres per unit (set from unit)
     std::array<int, 3> process_grid{0, 0, 0};  // ranks per axis, 0 = choose (slabs along z)
-    std::array<bool, 3> periodic{false, false, false};  // periodic x/y boundaries (slab tests)
+    std::array<bool, 3> periodic{false, false, false};  // periodic x, y, z (z: horizontal light only)
     double h() const { return cell_size * unit_scale; }  // cell edge in metres
 };
 
