@@ -112,7 +112,7 @@ const std::vector<KeyDoc>& scene_key_docs() {
         {"background.color", "radiance behind the medium, above any ground, W/(m² sr), per band"},
         {"background.ground_albedo", "ground: Lambertian albedo, in [0, 1]"},
         {"background.ground_color",
-         "ground: albedo per band, replacing ground_albedo; [] = unused"},
+         "ground: albedo per band, in [0, 1], replacing ground_albedo; [] = unused"},
 
         {"render", "The ray caster that makes the image (Max 1995)."},
         {"render.mode",
@@ -158,7 +158,7 @@ const std::vector<KeyDoc>& scene_key_docs() {
         {"model.diffusion.max_iterations", "per solve, >= 1; not converging is an error"},
         {"model.diffusion.margin",
          "cells added around the bounding box of the non-empty cells to make the solve region, "
-         ">= 0"},
+         ">= 0; cost only, the fields do not depend on it"},
         {"model.diffusion.max_transport_length",
          "metres (whatever grid.unit): cap on 1/kappa_tr in D and G; 0 = half the smallest "
          "non-periodic extent of the cloud's bounding box"},

@@ -186,6 +186,11 @@ void Scene::validate() const {
     require_bands(background.color, nbands(), "background.color");
     require(background.ground_albedo >= 0 && background.ground_albedo <= 1,
             "background.ground_albedo must be in [0, 1]");
+    if (!background.ground_color.empty()) {  // per-band albedo: empty (ground_albedo), 1 or one per band
+        require_bands(background.ground_color, nbands(), "background.ground_color");
+        for (double a : background.ground_color)
+            require(a <= 1.0, fmt::format("background.ground_color = {} is an albedo and must be in [0, 1]", a));
+    }
     require(render.step > 0 && render.step <= 4, "render.step must be in (0, 4] cells");
     require(render.early_termination >= 0 && render.early_termination < 1,
             "render.early_termination must be in [0, 1)");

@@ -280,6 +280,13 @@ TEST(SceneErrors, OtherRanges) {
     }
     expect_error(edit("", "[sky]\nradiance = [1, 2]"), "radiance = [1, 2]",
                  {"sky.radiance has 2 values but the scene has 1 band: give 1"});
+    // The ground's per-band albedo: the ray caster read past the list's end (2 values, 3 bands).
+    expect_error(edit("", "[background]\nground_color = [0.5, 0.7]"), "ground_color",
+                 {"background.ground_color has 2 values but the scene has 1 band: give 1"});
+    expect_error(edit("", "[background]\nground_color = -0.5"), "ground_color",
+                 {"background.ground_color = -0.5 must be finite and >= 0"});
+    expect_error(edit("", "[background]\nground_color = 1.5"), "ground_color",
+                 {"background.ground_color = 1.5 is an albedo and must be in [0, 1]"});
     // Sizes whose products overflow (the memory estimate went negative) and a density beyond the
     // single precision of the output (written as inf).
     expect_error(edit("n = [8, 8, 8]", "n = [2097152, 2097152, 2097152]"), "n = [2097152",
