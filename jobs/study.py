@@ -15,11 +15,16 @@ Usage (Debian's python3 has numpy, h5py and matplotlib):
       --reference-photons 10000000 --ranks 2 --out study
 A model is LABEL=NAME[,key=value,...]: NAME goes to model.name, each key=value to --set.
 --set key=value applies to every run (e.g. --set grid.n=[48,48,32] for a quick study).
+--repeats N runs every model N times, in rounds over the scene's models (so that a slow spell
+of a shared machine falls on different models, not on one model's every run), and reports the
+median wall and model times with their spread (solve_s_min, solve_s_max); the errors are those
+of the first round (the models are deterministic: same settings, same fields).
 """
 import argparse
 import csv
 import json
 import os
+import statistics
 import subprocess
 import sys
 import time
@@ -150,9 +155,13 @@ def main():
     p.add_argument("--ranks", type=int, default=2)
     p.add_argument("--nimbus", default=os.path.join("build", "bin", "nimbus"))
     p.add_argument("--out", default="study")
+    p.add_argument("--repeats", type=int, default=1,
+                   help="runs per model, in rounds; times are the medians (default 1)")
     p.add_argument("--reuse-reference", action="store_true",
                    help="keep OUT/<scene>/reference/nimbus.h5 when it exists (same scene and settings!)")
     args = p.parse_args()
+    if args.repeats < 1:
+        raise SystemExit(f"study: --repeats must be >= 1, not {args.repeats}")
     models = [parse_model(m) for m in args.model]
     if not (os.path.isfile(args.nimbus) and os.access(args.nimbus, os.X_OK)):
         raise SystemExit(f"study: no nimbus executable at {args.nimbus} (build it: bash jobs/build.sh; or --nimbus PATH)")
@@ -183,36 +192,54 @@ def main():
         else:
             ref_wall, _ = run_nimbus(args, scene, ref_sets, ref_dir)
             print(f"{tag}: reference done in {ref_wall:.1f} s", flush=True)
+        # Rounds over the models; a model that refuses the scene (e.g. volume sources with single
+        # or psf) is skipped with its reason; any other failure stops the study.
+        runs, skipped = {}, set()  # label -> {"wall": [...], "solve": [...], "cmp": compare()}
+        for round_ in range(args.repeats):
+            for label, sets in models:
+                if label in skipped:
+                    continue
+                run_dir = os.path.join(args.out, tag, label)
+                try:
+                    wall, report = run_nimbus(args, scene, args.set + sets, run_dir)
+                except RuntimeError:
+                    with open(os.path.join(run_dir, "log.txt")) as log:
+                        refusal = [l.strip() for l in log if "does not support" in l]
+                    if not refusal:
+                        raise
+                    print(f"{tag} {label}: skipped: {refusal[0]}", flush=True)
+                    skipped.add(label)
+                    continue
+                run = runs.setdefault(label, {"wall": [], "solve": []})
+                run["wall"].append(wall)
+                run["solve"].append(solve_seconds(report))
+                if round_ == 0:
+                    run["cmp"] = compare(args, run_dir, ref_dir)
+                print(f"{tag} {label}: {wall:.2f} s (round {round_ + 1} of {args.repeats})", flush=True)
         for label, sets in models:
-            run_dir = os.path.join(args.out, tag, label)
-            try:
-                wall, report = run_nimbus(args, scene, args.set + sets, run_dir)
-            except RuntimeError:
-                # A model that refuses the scene (e.g. volume sources with single or psf) is
-                # skipped with its reason; any other failure stops the study.
-                with open(os.path.join(run_dir, "log.txt")) as log:
-                    refusal = [l.strip() for l in log if "does not support" in l]
-                if not refusal:
-                    raise
-                print(f"{tag} {label}: skipped: {refusal[0]}", flush=True)
+            if label not in runs:
                 continue
-            cmp = compare(args, run_dir, ref_dir)
+            run = runs[label]
+            cmp = run["cmp"]
             # Bands whose relative errors are undefined (a zero reference: null, with "undefined")
             # are left out of the means; NaN if none is left.
             bands = [b for b in cmp["bands"] if b["rel_l2"] is not None]
             nan = float("nan")
             row = {
                 "scene": scene, "model": label, "settings": " ".join(sets), "ranks": args.ranks,
-                "wall_s": wall, "solve_s": solve_seconds(report),
+                "wall_s": statistics.median(run["wall"]), "solve_s": statistics.median(run["solve"]),
                 "rel_l2": sum(b["rel_l2"] for b in bands) / len(bands) if bands else nan,
                 "max_rel": max((b["max_rel"] for b in bands), default=nan),
                 "rms_z": sum(nan if b.get("rms_z") is None else b["rms_z"] for b in bands) / len(bands) if bands else nan,
                 "image_rmse": cmp.get("image", {}).get("rmse", float("nan")),
                 "image_rel": nan if cmp.get("image", {}).get("rel_error") is None else cmp["image"]["rel_error"],
                 "reference_wall_s": ref_wall,
+                "repeats": len(run["solve"]),
+                "solve_s_min": min(run["solve"]), "solve_s_max": max(run["solve"]),
             }
             rows.append(row)
-            print(f"{tag} {label}: {wall:.2f} s, relative L2 {row['rel_l2']:.3e}, max {row['max_rel']:.3e}", flush=True)
+            print(f"{tag} {label}: {row['wall_s']:.2f} s (median), relative L2 {row['rel_l2']:.3e}, "
+                  f"max {row['max_rel']:.3e}", flush=True)
 
     if not rows:
         raise SystemExit("study: no model ran on any scene (every one was skipped); nothing to write")

@@ -42,5 +42,7 @@ mkdir -p "$tmp/other" && cp "$src/scenes/slab.toml" "$tmp/other/default.toml"
 expect "study: scenes scenes/default.toml, $tmp/other/default.toml would share the folder $tmp/study/default: rename one" \
   /usr/bin/python3 jobs/study.py --scenes scenes/default.toml "$tmp/other/default.toml" --model x=single --ranks 1 \
   --nimbus "$build/bin/nimbus" --out "$tmp/study"
+expect "study: --repeats must be >= 1, not 0" \
+  /usr/bin/python3 jobs/study.py --scenes scenes/default.toml --model x=single --repeats 0 --out "$tmp/study"
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]
