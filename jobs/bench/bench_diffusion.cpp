@@ -22,7 +22,7 @@
 
 #include "jobs/bench/bench_support.h"
 #include "solvers/diffusion/assemble.h"
-#include "solvers/diffusion/band_groups.h"
+#include "src/physics/band_groups.h"
 #include "solvers/diffusion/diffusion.h"
 #include "solvers/diffusion/hypre_struct.h"
 #include "solvers/diffusion/solve_region.h"
@@ -130,7 +130,7 @@ int main(int argc, char** argv) {
             Report warm;
             run("pfmg-pcg", warm);
         }
-        const auto groups = diffusion::group_bands(m.bands, diffusion::term_strengths(lights, {}, m.nbands()));
+        const auto groups = group_bands(m.bands, term_strengths(lights, {}, m.nbands()));
         const auto problem = diffusion::make_problem(d, m, light, {}, groups[0]);
         const char* reps_env = std::getenv("BENCH_REPS");
         const int reps = std::max(1, reps_env ? std::atoi(reps_env) : 1);

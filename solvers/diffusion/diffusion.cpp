@@ -8,7 +8,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
-#include "solvers/diffusion/band_groups.h"
+#include "src/physics/band_groups.h"
 #include "solvers/diffusion/linear_solve.h"
 #include "solvers/diffusion/solve_diffusion.h"
 #include "solvers/diffusion/sources.h"
@@ -90,8 +90,8 @@ public:
         const bool linear = opt_.flux_limiter == "none";
         const std::vector<VolumeSource> sources = volume_sources(ctx.scene);  // [[sources]], q = power / 4π
         check_volume_sources(sources, m.rho, d);
-        const auto groups = diffusion::group_bands(
-            m.bands, diffusion::term_strengths(ctx.light.lights, sources, m.nbands()), linear);
+        const auto groups = group_bands(
+            m.bands, term_strengths(ctx.light.lights, sources, m.nbands()), linear);
         DiffusionOptions solve_opt = opt_;
         if (linear) solve_opt.clamp_negative = false;
         ctx.report.values()["diffusion"]["matrices"] = groups.size();
@@ -160,7 +160,7 @@ private:
     // (no delta scaling: -0.24 x max on a 48 x 48 x 32 cloud, -5 x with the flux limiter), and
     // the clamp to zero in the output would hide it.
     // "band r" or "bands r, g, b": the bands a group's solve serves, for messages.
-    static std::string band_names(const diffusion::BandGroup& group, const Medium& m) {
+    static std::string band_names(const BandGroup& group, const Medium& m) {
         std::vector<std::string> names;
         for (const auto& use : group.bands) names.push_back(m.bands[static_cast<size_t>(use.band)].name);
         return fmt::format("{} {}", names.size() == 1 ? "band" : "bands", fmt::join(names, ", "));
@@ -173,31 +173,25 @@ private:
         const nlohmann::json& rec = report.values()["diffusion"];
         return rec.contains("systems") ? rec["systems"].size() : 0;
     }
-    static void label_systems(Report& report, size_t from, size_t g, const diffusion::BandGroup& group,
+    static void label_systems(Report& report, size_t from, size_t g, const BandGroup& group,
                               const Medium& m, const std::vector<DirectionalLight>& lights) {
         if (system_count(report) == from) return;
         nlohmann::json& systems = report.values()["diffusion"]["systems"];
         for (size_t e = from; e < systems.size(); ++e) {
             const size_t rhs = systems[e]["rhs"].get<size_t>();
-            std::vector<std::string> bands, terms;
+            std::vector<std::string> bands;
             for (const auto& use : group.bands)
                 for (const auto& t : use.terms)
                     if (static_cast<size_t>(t.rhs) == rhs) bands.push_back(m.bands[static_cast<size_t>(use.band)].name);
             const std::vector<double>& weight = group.rhs_weights[rhs];
-            for (size_t t = 0; t < weight.size(); ++t) {
-                if (weight[t] == 0.0) continue;
-                std::string name = t < lights.size() ? lights[t].name : fmt::format("sources[{}]", t - lights.size());
-                if (name.starts_with("sky[")) name = "sky";
-                if (std::find(terms.begin(), terms.end(), name) == terms.end()) terms.push_back(std::move(name));
-            }
             systems[e]["matrix"] = g;
             systems[e]["bands"] = bands;
-            systems[e]["terms"] = terms;
+            systems[e]["terms"] = term_names(weight, lights, weight.size() - lights.size());
         }
     }
     static constexpr double kNegativeWarning = 0.05;
     static constexpr int kPfmgLargestOddPeriodFactor = 8;
-    void warn_if_negative(const std::vector<diffusion::SolveStats>& stats, const diffusion::BandGroup& group,
+    void warn_if_negative(const std::vector<diffusion::SolveStats>& stats, const BandGroup& group,
                           const Medium& m) const {
         for (const auto& st : stats) {
             if (!(st.min_U < -kNegativeWarning * st.max_U)) continue;

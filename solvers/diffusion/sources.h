@@ -11,7 +11,7 @@
 // Collective over d.comm() (halo exchange of G).
 #pragma once
 
-#include "solvers/diffusion/band_groups.h"
+#include "src/physics/band_groups.h"
 #include "solvers/diffusion/diffusion_problem.h"
 #include "src/core/decomposition.h"
 #include "src/model/model.h"

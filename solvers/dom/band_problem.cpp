@@ -6,8 +6,8 @@
 
 namespace nimbus::dom {
 
-BandProblem make_band_optics(const Medium& m, int b, const Box& own, const AngularSet& ang, bool delta_m) {
-    const BandOptics& o = m.bands[static_cast<size_t>(b)];
+BandProblem make_band_optics(const Medium& m, const BandOptics& o, const Box& own, const AngularSet& ang,
+                             bool delta_m) {
     BandProblem p;
     p.h = m.grid.h;
     p.phase = hg_legendre(o.g, ang.L, delta_m);
@@ -39,10 +39,12 @@ LightTransport without_sky(const LightTransport& lt) {
     return r;
 }
 
-void add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, const LightTransport& lt, int b,
-                       const AngularSet& ang) {
-    const BandOptics& o = m.bands[static_cast<size_t>(b)];
-    const int nl = static_cast<int>(lt.lights.size());
+void add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, const LightTransport& lt,
+                       const BandOptics& o, const std::vector<double>& E0, const AngularSet& ang) {
+    std::vector<int> lit;  // the lights of lt this problem carries
+    for (size_t l = 0; l < lt.lights.size(); ++l)
+        if (E0[l] != 0.0) lit.push_back(static_cast<int>(l));
+    const int nl = static_cast<int>(lit.size());
     const Box own = p.kappa.owned();
     const double f = p.phase.f, scale = delta_m_sigma_t_scale(o.albedo, f);
     p.nl = nl;
@@ -56,7 +58,8 @@ void add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, 
         P.assign(static_cast<size_t>(nl * nd), 0.0);
         for (int l = 0; l < nl; ++l)
             for (int n = 0; n < nd; ++n) {
-                const double v = legendre_phase_value(p.phase, dot(od.dir[static_cast<size_t>(n)], lt.lights[static_cast<size_t>(l)].w));
+                const Vec3& w = lt.lights[static_cast<size_t>(lit[static_cast<size_t>(l)])].w;
+                const double v = legendre_phase_value(p.phase, dot(od.dir[static_cast<size_t>(n)], w));
                 P[static_cast<size_t>(l * nd + n)] = v;
                 norm[static_cast<size_t>(l)] += od.weight[static_cast<size_t>(n)] * v;
             }
@@ -66,19 +69,27 @@ void add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, 
         for (size_t q = 0; q < P.size(); ++q) P[q] /= norm[q / nd];
     }
     for (int l = 0; l < nl; ++l) {
-        const auto& light = lt.lights[static_cast<size_t>(l)];
-        const double E0 = band_value(light.E0, b);
+        const int t = lit[static_cast<size_t>(l)];
+        const auto& light = lt.lights[static_cast<size_t>(t)];
+        const double e0 = E0[static_cast<size_t>(t)];
         for_each_cell(own, [&](int i, int j, int k) {
-            const double tau = o.sigma_t * lt.tau_rho[static_cast<size_t>(l)](i, j, k);
+            const double tau = o.sigma_t * lt.tau_rho[static_cast<size_t>(t)](i, j, k);
             const double T = std::exp(-tau), Ts = std::exp(-scale * tau);
             // The source integrates over the cell: the cell's mean of the scaled beam's T.
-            p.amp(i, j, k, l) = p.sigma_s(i, j, k) * E0 *
-                                lt.transmittance_mean(d, m.rho, l, scale * o.sigma_t, m.grid.h, i, j, k);
-            const double fwd = E0 * (Ts - T);
+            p.amp(i, j, k, l) = p.sigma_s(i, j, k) * e0 *
+                                lt.transmittance_mean(d, m.rho, t, scale * o.sigma_t, m.grid.h, i, j, k);
+            const double fwd = e0 * (Ts - T);
             p.forward_fluence(i, j, k) += fwd;
             for (int c = 0; c < 3; ++c) p.forward_flux(i, j, k, c) += fwd * light.w[c];
         });
     }
+}
+
+void add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, const LightTransport& lt, int b,
+                       const AngularSet& ang) {
+    std::vector<double> E0;
+    for (const DirectionalLight& light : lt.lights) E0.push_back(band_value(light.E0, b));
+    add_light_sources(p, d, m, lt, m.bands[static_cast<size_t>(b)], E0, ang);
 }
 
 }  // namespace nimbus::dom

@@ -43,11 +43,20 @@ struct BandProblem {
     Field<double> forward_flux;          // Σ_l E0_l (T*_l - T_l) w_l, 3 components
 };
 
-// A problem with the medium's optics of band b and no sources yet (emission 0, nl = 0).
-// kappa per cell = rho sigma_t.
-BandProblem make_band_optics(const Medium& m, int b, const Box& own, const AngularSet& ang, bool delta_m);
+// A problem with optics o (kappa per cell = rho o.sigma_t) and no sources yet (emission 0, nl = 0).
+BandProblem make_band_optics(const Medium& m, const BandOptics& o, const Box& own, const AngularSet& ang,
+                             bool delta_m);
+// The same with the optics of band b.
+inline BandProblem make_band_optics(const Medium& m, int b, const Box& own, const AngularSet& ang, bool delta_m) {
+    return make_band_optics(m, m.bands[static_cast<size_t>(b)], own, ang, delta_m);
+}
 
-// Adds the first-collision sources of every light term of lt (band b) to p.
+// Adds the first-collision sources of the light terms of lt at strengths E0[l] (W/m², one per
+// light of lt; optics o as given to make_band_optics). Lights of strength 0 are left out
+// (p.nl counts the others), so a problem for the sky alone carries no sun term.
+void add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, const LightTransport& lt,
+                       const BandOptics& o, const std::vector<double>& E0, const AngularSet& ang);
+// The same at band b's strengths, E0[l] = the light's E0 in band b.
 void add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, const LightTransport& lt, int b,
                        const AngularSet& ang);
 

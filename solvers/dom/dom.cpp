@@ -1,6 +1,7 @@
 #include "solvers/dom/dom.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cmath>
@@ -14,18 +15,18 @@
 #include "src/core/halo.h"
 #include "src/core/log.h"
 #include "src/physics/angular_moments.h"
+#include "src/physics/band_groups.h"
 #include "src/scene/emission.h"
 
 namespace nimbus {
 namespace {
 
-// The uncollided sky of band b on the quadrature: one sweep of the sky boundary radiance alone
+// The uncollided sky of optics o on the quadrature: one sweep of the sky boundary radiance alone
 // (no volume source, no scattering) with the true extinction kappa = rho sigma_t. The lagged
 // reflected planes are cleared first (a high reflective face then reflects nothing of it).
-void uncollided_sky(const Medium& m, int b, const dom::AngularSet& ang, dom::TransportSweeper& sweeper,
+void uncollided_sky(const Medium& m, const BandOptics& o, const dom::AngularSet& ang, dom::TransportSweeper& sweeper,
                     dom::SweepOutput& unc) {
     const Box own = m.rho.owned();
-    const BandOptics& o = m.bands[static_cast<size_t>(b)];
     Field<double> kappa(own, 0, 1, 0.0), zero(own, 0, ang.nmom, 0.0), no_light(own, 0, 1, 0.0);
     for_each_cell(own, [&](int i, int j, int k) { kappa(i, j, k) = m.rho(i, j, k) * o.sigma_t; });
     dom::SweepSource src;
@@ -126,87 +127,125 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
     rec["quadrature"] = ang.quadrature.name;
     rec["directions"] = ndir;
     rec["moments"] = ang.nmom;
-    rec["bands"] = nlohmann::json::array();
-    out = DiffuseSolution{};
     double iter_seconds = 0, unknown_iterations = 0;
     const std::vector<VolumeSource> sources = volume_sources(ctx.scene);  // [[sources]], q = power / 4π
     check_volume_sources(sources, m.rho, d);
+    // Source terms (src/physics/band_groups.h): the first-collision lights, the volume sources
+    // and, with the sky as boundary radiance, the sky. The transport is linear in them, so bands
+    // with equal optics share one problem per colour of the sources: the default cloud's three
+    // bands are two solves, the sun and the sky.
+    std::vector<std::vector<double>> strength = term_strengths(lights.lights, sources, m.nbands());
+    const size_t nl = lights.lights.size(), sky_term = strength.size();
+    if (bc.sky) {
+        std::vector<double> L;
+        for (int b = 0; b < m.nbands(); ++b) L.push_back(band_value(ctx.scene.sky.radiance, b));
+        strength.push_back(std::move(L));
+    }
+    const std::vector<BandGroup> groups = group_bands(m.bands, strength);
+    out = DiffuseSolution{};
     for (int b = 0; b < m.nbands(); ++b) {
-        dom::BandProblem p = dom::make_band_optics(m, b, own, ang, opt_.delta_m);
-        check_diamond_dsa(d, p);
-        dom::add_light_sources(p, d, m, lights, b, ang);
-        sweeper.reset_reflections();
-        if (bc.sky) sweeper.set_sky_radiance(band_value(ctx.scene.sky.radiance, b));
-        if (!sources.empty())
+        out.fluence.emplace_back(own, 1, 1, 0.0);
+        out.flux.emplace_back(own, 1, 3, 0.0);
+    }
+    rec["solves"] = nlohmann::json::array();
+    for (const BandGroup& group : groups)
+        for (size_t r = 0; r < group.rhs_weights.size(); ++r) {
+            const std::vector<double>& weight = group.rhs_weights[r];
+            std::vector<std::string> band_names;
+            for (const BandUse& use : group.bands)
+                for (const RhsTerm& t : use.terms)
+                    if (static_cast<size_t>(t.rhs) == r) band_names.push_back(m.bands[static_cast<size_t>(use.band)].name);
+            const std::string for_bands = fmt::format("{} {}", band_names.size() == 1 ? "band" : "bands",
+                                                      fmt::join(band_names, ", "));
+            nlohmann::json entry = {{"bands", band_names},
+                                    {"terms", term_names(weight, lights.lights, sources.size())}};
+            dom::BandProblem p = dom::make_band_optics(m, group.optics, own, ang, opt_.delta_m);
+            check_diamond_dsa(d, p);
+            dom::add_light_sources(p, d, m, lights, group.optics,
+                                   std::vector<double>(weight.begin(), weight.begin() + static_cast<std::ptrdiff_t>(nl)), ang);
+            sweeper.reset_reflections();
+            if (bc.sky) sweeper.set_sky_radiance(weight[sky_term]);
+            if (!sources.empty())
+                for_each_cell(own, [&](int i, int j, int k) {
+                    const double e = emitted_power_at(
+                        sources, m.rho, [&](size_t t) { return weight[nl + t]; }, i, j, k, {i, j, k});
+                    p.emission(i, j, k) = e / (4.0 * std::acos(-1.0));
+                });
+            dom::SweepOutput sw;
+            const dom::IterationResult res =
+                opt_.iteration == "gmres"
+                    ? dom::gmres_band(d, sweeper, ang, p, opt_.tolerance, opt_.max_iterations, sw, ctx.report)
+                    : dom::iterate_band(d, sweeper, ang, p, opt_.iteration, opt_.tolerance, opt_.max_iterations, sw,
+                                        ctx.report);
+            entry["converged"] = res.converged;
+            entry["iterations"] = res.iterations;
+            entry["history"] = res.history;
+            if (!res.converged) {
+                rec["solves"].push_back(entry);
+                if (res.stalled)
+                    throw Error(fmt::format(
+                        "dom: the solve of {} diverges with iteration = \"{}\": the relative change has stayed above "
+                        "{:g} times its lowest value for {} iterations ({}){}; use model.dom.iteration = "
+                        "\"gmres\" (DSA-preconditioned GMRES)",
+                        for_bands, opt_.iteration, dom::kStallGrowth, dom::kStallWindow,
+                        dom::format_history(res.history),
+                        group.optics.g < 0 ? fmt::format(" - DSA's isotropic correction diverges on strongly "
+                                                         "backscattering media (g = {})", group.optics.g)
+                                           : ""));
+                throw Error(fmt::format("dom: the solve of {} did not converge in {} {} iterations (tolerance {:.1e}); "
+                                        "relative change: {}; raise model.dom.max_iterations or use "
+                                        "model.dom.iteration = \"gmres\"", for_bands, res.iterations,
+                                        opt_.iteration, opt_.tolerance, dom::format_history(res.history)));
+            }
+            // Energy balance of the scaled problem: emitted + first-collision = absorbed + leaked
+            // (the sky as boundary radiance enters as negative leakage).
+            double e[2] = {0.0, 0.0};
+            const double vol = m.grid.cell_volume();
             for_each_cell(own, [&](int i, int j, int k) {
-                p.emission(i, j, k) = emitted_power(sources, m.rho, b, i, j, k) / (4.0 * std::acos(-1.0));
+                double src = 4.0 * std::acos(-1.0) * p.emission(i, j, k);
+                for (int l = 0; l < p.nl; ++l) src += p.amp(i, j, k, l);
+                e[0] += vol * src;
+                e[1] += vol * p.sigma_a(i, j, k) * sw.fluence(i, j, k);
             });
-        dom::SweepOutput sw;
-        const dom::IterationResult r =
-            opt_.iteration == "gmres"
-                ? dom::gmres_band(d, sweeper, ang, p, opt_.tolerance, opt_.max_iterations, sw, ctx.report)
-                : dom::iterate_band(d, sweeper, ang, p, opt_.iteration, opt_.tolerance, opt_.max_iterations, sw,
-                                    ctx.report);
-        if (!r.converged) {
-            rec["bands"].push_back({{"band", m.bands[static_cast<size_t>(b)].name}, {"converged", false},
-                                    {"iterations", r.iterations}, {"history", r.history}});
-            const BandOptics& o = m.bands[static_cast<size_t>(b)];
-            if (r.stalled)
-                throw Error(fmt::format(
-                    "dom: band {} diverges with iteration = \"{}\": the relative change has stayed above "
-                    "{:g} times its lowest value for {} iterations ({}){}; use model.dom.iteration = "
-                    "\"gmres\" (DSA-preconditioned GMRES)",
-                    o.name, opt_.iteration, dom::kStallGrowth, dom::kStallWindow, dom::format_history(r.history),
-                    o.g < 0 ? fmt::format(" - DSA's isotropic correction diverges on strongly backscattering "
-                                          "media (g = {})", o.g)
-                            : ""));
-            throw Error(fmt::format("dom: band {} did not converge in {} {} iterations (tolerance {:.1e}); "
-                                    "relative change: {}; raise model.dom.max_iterations or use "
-                                    "model.dom.iteration = \"gmres\"", o.name, r.iterations,
-                                    opt_.iteration, opt_.tolerance, dom::format_history(r.history)));
+            MPI_Allreduce(MPI_IN_PLACE, e, 2, MPI_DOUBLE, MPI_SUM, d.comm());
+            double leaked = 0.0;
+            for (double v : sw.leakage) leaked += v;
+            double seconds = res.seconds;
+            MPI_Allreduce(MPI_IN_PLACE, &seconds, 1, MPI_DOUBLE, MPI_MAX, d.comm());
+            iter_seconds += seconds;
+            unknown_iterations += global_cells * ndir * res.iterations;
+            entry["dsa_linear_iterations"] = res.dsa_linear_iterations;
+            entry["delta_m_f"] = p.phase.f;
+            entry["seconds"] = seconds;
+            entry["source_power"] = e[0];
+            entry["absorbed_power"] = e[1];
+            entry["leakage"] = sw.leakage;
+            entry["energy_balance"] = e[0] > 0 ? (e[0] - e[1] - leaked) / e[0] : 0.0;
+            rec["solves"].push_back(entry);
+            // Sky as boundary radiance: psi holds the uncollided sky too; DESIGN's fluence_diffuse
+            // excludes it, so subtract the discrete uncollided sky (one sweep, true kappa: the
+            // delta-M forward peak of the sky stays in, as for the first-collision terms).
+            dom::SweepOutput unc;
+            const bool sky_lit = bc.sky && weight[sky_term] != 0.0;
+            if (sky_lit) uncollided_sky(m, group.optics, ang, sweeper, unc);
+            // Each band that uses this solve adds it at its scale.
+            for (const BandUse& use : group.bands)
+                for (const RhsTerm& t : use.terms) {
+                    if (static_cast<size_t>(t.rhs) != r) continue;
+                    Field<double>& fl = out.fluence[static_cast<size_t>(use.band)];
+                    Field<double>& fx = out.flux[static_cast<size_t>(use.band)];
+                    for_each_cell(own, [&](int i, int j, int k) {
+                        fl(i, j, k) += t.scale * (sw.fluence(i, j, k) + p.forward_fluence(i, j, k) -
+                                                  (sky_lit ? unc.fluence(i, j, k) : 0.0));
+                        for (int c = 0; c < 3; ++c)
+                            fx(i, j, k, c) += t.scale * (sw.flux(i, j, k, c) + p.forward_flux(i, j, k, c) -
+                                                         (sky_lit ? unc.flux(i, j, k, c) : 0.0));
+                    });
+                }
         }
-        // Energy balance of the scaled problem: emitted + first-collision = absorbed + leaked.
-        double e[2] = {0.0, 0.0};
-        const double vol = m.grid.cell_volume();
-        for_each_cell(own, [&](int i, int j, int k) {
-            double src = 4.0 * std::acos(-1.0) * p.emission(i, j, k);
-            for (int l = 0; l < p.nl; ++l) src += p.amp(i, j, k, l);
-            e[0] += vol * src;
-            e[1] += vol * p.sigma_a(i, j, k) * sw.fluence(i, j, k);
-        });
-        MPI_Allreduce(MPI_IN_PLACE, e, 2, MPI_DOUBLE, MPI_SUM, d.comm());
-        double leaked = 0.0;
-        for (double v : sw.leakage) leaked += v;
-        double seconds = r.seconds;
-        MPI_Allreduce(MPI_IN_PLACE, &seconds, 1, MPI_DOUBLE, MPI_MAX, d.comm());
-        iter_seconds += seconds;
-        unknown_iterations += global_cells * ndir * r.iterations;
-        rec["bands"].push_back({{"band", m.bands[static_cast<size_t>(b)].name},
-                                {"converged", true},
-                                {"iterations", r.iterations},
-                                {"history", r.history},
-                                {"dsa_linear_iterations", r.dsa_linear_iterations},
-                                {"delta_m_f", p.phase.f},
-                                {"seconds", seconds},
-                                {"source_power", e[0]},
-                                {"absorbed_power", e[1]},
-                                {"leakage", sw.leakage},
-                                {"energy_balance", e[0] > 0 ? (e[0] - e[1] - leaked) / e[0] : 0.0}});
-        // Sky as boundary radiance: psi holds the uncollided sky too; DESIGN's fluence_diffuse
-        // excludes it, so subtract the discrete uncollided sky (one sweep, true kappa: the
-        // delta-M forward peak of the sky stays in, as for the first-collision terms).
-        dom::SweepOutput unc;
-        if (bc.sky) uncollided_sky(m, b, ang, sweeper, unc);
-        Field<double> fl(own, 1, 1, 0.0), fx(own, 1, 3, 0.0);
-        for_each_cell(own, [&](int i, int j, int k) {
-            fl(i, j, k) = sw.fluence(i, j, k) + p.forward_fluence(i, j, k) - (bc.sky ? unc.fluence(i, j, k) : 0.0);
-            for (int c = 0; c < 3; ++c)
-                fx(i, j, k, c) = sw.flux(i, j, k, c) + p.forward_flux(i, j, k, c) - (bc.sky ? unc.flux(i, j, k, c) : 0.0);
-        });
-        exchange_halo(fl, d);
-        exchange_halo(fx, d);
-        out.fluence.push_back(std::move(fl));
-        out.flux.push_back(std::move(fx));
+    for (int b = 0; b < m.nbands(); ++b) {
+        exchange_halo(out.fluence[static_cast<size_t>(b)], d);
+        exchange_halo(out.flux[static_cast<size_t>(b)], d);
     }
     // Figures of merit (Kripke's definition: time / (global unknowns x iterations)).
     const dom::SweepTiming& t = sweeper.timing();

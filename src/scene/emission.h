@@ -70,13 +70,22 @@ inline std::vector<VolumeSource> volume_sources(const Scene& scene) {
 // sources covering it, 0 in empty cells. rho must hold (i, j, k). A ghost cell across a
 // periodic face passes the domain cell it wraps to as `domain_cell` (the sources' boxes are in
 // domain cells); otherwise it is (i, j, k).
-inline double emitted_power(const std::vector<VolumeSource>& sources, const Field<double>& rho,
-                            int b, int i, int j, int k, const Int3& domain_cell) {
+// The same at given strengths: strength(s) W/m³ for source s (a right-hand side's weights over
+// the volume-source terms, band_groups.h) instead of band b's powers.
+template <class Strength>
+double emitted_power_at(const std::vector<VolumeSource>& sources, const Field<double>& rho, Strength&& strength,
+                        int i, int j, int k, const Int3& domain_cell) {
     if (!(rho(i, j, k) > 0)) return 0.0;
     double p = 0.0;
-    for (const VolumeSource& s : sources)
-        if (s.cells.contains(domain_cell[0], domain_cell[1], domain_cell[2])) p += s.power[static_cast<size_t>(b)];
+    for (size_t s = 0; s < sources.size(); ++s)
+        if (sources[s].cells.contains(domain_cell[0], domain_cell[1], domain_cell[2])) p += strength(s);
     return p;
+}
+
+inline double emitted_power(const std::vector<VolumeSource>& sources, const Field<double>& rho,
+                            int b, int i, int j, int k, const Int3& domain_cell) {
+    return emitted_power_at(
+        sources, rho, [&](size_t s) { return sources[s].power[static_cast<size_t>(b)]; }, i, j, k, domain_cell);
 }
 
 inline double emitted_power(const std::vector<VolumeSource>& sources, const Field<double>& rho,

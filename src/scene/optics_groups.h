@@ -1,6 +1,6 @@
 // Bands with equal optics (sigma_t, albedo, g). A model whose transport depends on a band only
 // through its optics solves or traces each group once and scales by the band's light: the
-// diffusion matrix (solvers/diffusion/band_groups.h), the Monte Carlo photons and camera paths
+// diffusion matrix (src/physics/band_groups.h), the Monte Carlo photons and camera paths
 // (solvers/montecarlo). Pure, header-only.
 #pragma once
 

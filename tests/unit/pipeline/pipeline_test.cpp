@@ -18,12 +18,29 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string scratch(const std::string& name) {
-    // Same folder name on every rank (rank 0's pid).
+// This binary's scratch folder, the same on every rank (rank 0's pid).
+fs::path scratch_root() {
     int pid = static_cast<int>(::getpid());
     MPI_Bcast(&pid, 1, MPI_INT, 0, MPI_COMM_WORLD);
-    return (fs::temp_directory_path() / ("nimbus_pipeline_" + std::to_string(pid)) / name).string();
+    return fs::temp_directory_path() / ("nimbus_pipeline_" + std::to_string(pid));
 }
+
+std::string scratch(const std::string& name) { return (scratch_root() / name).string(); }
+
+// Removes the scratch folder once every test has run (it used to stay in /tmp, a few MB a run).
+class ScratchCleanup : public ::testing::Environment {
+public:
+    void TearDown() override {
+        const fs::path root = scratch_root();
+        MPI_Barrier(MPI_COMM_WORLD);
+        if (test::world_rank() == 0) {
+            std::error_code ec;
+            fs::remove_all(root, ec);
+        }
+    }
+};
+[[maybe_unused]] ::testing::Environment* const kScratchCleanup =
+    ::testing::AddGlobalTestEnvironment(new ScratchCleanup);
 
 Scene small_scene(const std::string& out) {
     Scene s = default_scene({"grid.n=[24,20,16]", "grid.cell_size=100.0", "camera.resolution=[48,32]"});

@@ -85,7 +85,7 @@ TEST(DomModel, EnergyBalanceOfTheSweepIsExact) {
     o.tolerance = 1e-11;
     DiffuseSolution sol;
     make_dom_model(o)->solve(w.ctx(), sol);
-    const auto& band = w.report.values()["dom"]["bands"][0];
+    const auto& band = w.report.values()["dom"]["solves"][0];
     if (test::world_rank() == 0)
         std::printf("energy balance %.3e after %d iterations, source power %.4e\n", band["energy_balance"].get<double>(),
                     band["iterations"].get<int>(), band["source_power"].get<double>());

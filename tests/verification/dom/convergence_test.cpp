@@ -139,7 +139,7 @@ protected:
         MPI_Allreduce(MPI_IN_PLACE, &row.seconds, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
         const auto& rec = c.report.values()["dom"];
         row.directions = rec["directions"].get<int>();
-        row.iterations = rec["bands"][0]["iterations"].get<int>();
+        row.iterations = rec["solves"][0]["iterations"].get<int>();
         double s[2] = {0.0, 0.0};
         for_each_cell(c.d.local(), [&](int i, int j, int kk) {
             if (c.m.rho(i, j, kk) <= 0.0) return;

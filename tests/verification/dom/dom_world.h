@@ -104,7 +104,7 @@ inline CubeRun solve_thick_cube(int n, double tau, double albedo, const std::str
     }
     r.seconds = MPI_Wtime() - t0;
     MPI_Allreduce(MPI_IN_PLACE, &r.seconds, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
-    const auto& band = w.report.values()["dom"]["bands"];
+    const auto& band = w.report.values()["dom"]["solves"];
     if (!band.empty()) {
         r.iterations = band[0]["iterations"].get<int>();
         r.history = band[0]["history"].get<std::vector<double>>();

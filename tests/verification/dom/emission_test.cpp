@@ -54,7 +54,7 @@ TEST(DomEmission, EnergyBalanceAndEmittedPower) {
                     expected += (src[0].cells.contains(i, j, k) ? 3.0 : 0.0) +
                                 (src[1].cells.contains(i, j, k) ? 0.5 : 0.0);
     expected *= h * h * h;
-    const auto& band = w.report.values()["dom"]["bands"][0];
+    const auto& band = w.report.values()["dom"]["solves"][0];
     if (test::world_rank() == 0)
         std::printf(
             "dom emission: source power %.6f (expected %.6f), energy balance %.2e after %d "
@@ -143,7 +143,7 @@ TEST(DomEmission, VoidDuctRayEffectAgainstMonteCarlo) {
         DiffuseSolution sol;
         make_dom_model(o)->solve(w.ctx(), sol);
         const int ndir = w.report.values()["dom"]["directions"].get<int>();
-        const auto& band = w.report.values()["dom"]["bands"][0];
+        const auto& band = w.report.values()["dom"]["solves"][0];
         if (test::world_rank() == 0)
             std::printf("  %-7s %3d dirs  %d iterations, %.2f s\n", c.label.c_str(), ndir,
                         band["iterations"].get<int>(), band["seconds"].get<double>());

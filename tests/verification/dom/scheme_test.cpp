@@ -201,7 +201,7 @@ SlabErrors slab(SpatialScheme scheme, int nz, int polar) {
     o.scheme = name(scheme);
     DiffuseSolution sol;
     make_dom_model(o)->solve(w.ctx(), sol);
-    const auto leak = w.report.values()["dom"]["bands"][0]["leakage"].get<std::vector<double>>();
+    const auto leak = w.report.values()["dom"]["solves"][0]["leakage"].get<std::vector<double>>();
     const double incident = mu0 * 16.0 * h * h;
     test::SlabProblem sp;
     sp.tau0 = tau0;
@@ -280,7 +280,7 @@ double rank_difference(DomOptions o, double sky) {
     if (test::world_rank() == 0)
         std::printf("1 vs %d ranks, diamond%s: max diff %.3e of peak %.4f (%d iterations)\n", test::world_size(),
                     sky > 0 ? " + reflective z-, x+ + sky boundary" : "", diff, peak,
-                    world.report.values()["dom"]["bands"][0]["iterations"].get<int>());
+                    world.report.values()["dom"]["solves"][0]["iterations"].get<int>());
     EXPECT_GT(peak, 0.0);
     return diff / peak;
 }

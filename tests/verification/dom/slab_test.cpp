@@ -33,7 +33,7 @@ SlabErrors run_slab(double g, int nz, int order, int L, const char* method = "ds
     o.tolerance = 1e-9;
     DiffuseSolution sol;
     make_dom_model(o)->solve(w.ctx(), sol);
-    const auto& band = w.report.values()["dom"]["bands"][0];
+    const auto& band = w.report.values()["dom"]["solves"][0];
     const auto leak = band["leakage"].get<std::vector<double>>();
     const double f = band["delta_m_f"].get<double>();
     const double area = 16.0 * h * h, incident = mu0 * area;

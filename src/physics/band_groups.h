@@ -1,24 +1,27 @@
-// Grouping of bands for the diffusion solve (pure, no MPI). Bands with equal optics
-// (sigma_t, albedo, g) share a matrix. Within such a group the right-hand sides are a basis of
-// the bands' sources. A source term t is a light (strength E0_t[b], W/m²) or a volume source
-// (strength power_t[b], W/m³); the source of band b is sum over terms t of strength_t[b] S_t
-// (S_t: term t's source at unit strength), so with the P1 system linear,
+// Grouping of bands for models that are linear in their sources (pure, no MPI): the diffusion
+// solve (one matrix per group) and discrete ordinates (one transport problem per group). Bands
+// with equal optics (sigma_t, albedo, g) share the operator. Within such a group the right-hand
+// sides are a basis of the bands' sources. A source term t is a light (strength E0_t[b], W/m²),
+// a volume source (strength power_t[b], W/m³) or, for DOM's sky as boundary radiance, the sky
+// (strength L[b], W/m²/sr); the source of band b is sum over terms t of strength_t[b] S_t
+// (S_t: term t's source at unit strength), so with the model linear,
 //   U_b = sum over right-hand sides r of scale_{b,r} U_r,  rhs r: sum over t of weight_{r,t} S_t.
 // Two bases, the smaller is used:
 //   by band:   one rhs per band, bands whose strengths are proportional over the terms share one;
 //   by colour: one rhs per class of terms whose strengths are proportional over the group's
 //              bands (the sun and a one-colour sky: 2 solves for any number of bands).
-// The colour basis needs superposition; the flux-limited solve is nonlinear and asks for the
+// The colour basis needs superposition; a nonlinear solve (flux-limited diffusion) asks for the
 // band basis (superpose = false).
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include "src/physics/lights.h"
 #include "src/scene/emission.h"
 #include "src/scene/scene.h"
 
-namespace nimbus::diffusion {
+namespace nimbus {
 
 struct RhsTerm {
     int rhs = 0;
@@ -45,4 +48,11 @@ std::vector<BandGroup> group_bands(const std::vector<BandOptics>& bands,
 std::vector<std::vector<double>> term_strengths(const std::vector<DirectionalLight>& lights,
                                                 const std::vector<VolumeSource>& sources, int nbands);
 
-}  // namespace nimbus::diffusion
+// The names of the terms that right-hand side weights holds (non-zero weight), for reports: a
+// light by its name, "sky" once for all its direction bins ("sky[...]"), a volume source as
+// "sources[i]" (terms lights.size() on), and "sky" for a term past the volume sources (DOM's
+// sky as boundary radiance). Each name once, in term order.
+std::vector<std::string> term_names(const std::vector<double>& weights, const std::vector<DirectionalLight>& lights,
+                                    size_t nsources);
+
+}  // namespace nimbus

@@ -1,11 +1,13 @@
-#include "solvers/diffusion/band_groups.h"
+#include "src/physics/band_groups.h"
+
+#include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
 
 #include "src/scene/optics_groups.h"
 
-namespace nimbus::diffusion {
+namespace nimbus {
 namespace {
 
 // a = scale * b componentwise (to round-off), b not all zero; sets scale (least squares).
@@ -105,4 +107,18 @@ std::vector<std::vector<double>> term_strengths(const std::vector<DirectionalLig
     return strength;
 }
 
-}  // namespace nimbus::diffusion
+std::vector<std::string> term_names(const std::vector<double>& weights, const std::vector<DirectionalLight>& lights,
+                                    size_t nsources) {
+    std::vector<std::string> names;
+    for (size_t t = 0; t < weights.size(); ++t) {
+        if (weights[t] == 0.0) continue;
+        std::string name = t < lights.size()            ? lights[t].name
+                           : t < lights.size() + nsources ? fmt::format("sources[{}]", t - lights.size())
+                                                          : std::string("sky");
+        if (name.starts_with("sky[")) name = "sky";
+        if (std::find(names.begin(), names.end(), name) == names.end()) names.push_back(std::move(name));
+    }
+    return names;
+}
+
+}  // namespace nimbus
