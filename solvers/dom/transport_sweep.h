@@ -173,6 +173,9 @@ private:
     // this rank) for the octant o leaving through it, plane cells x nd.
     std::array<std::array<std::vector<double>, 8>, 6> reflected_;
     std::array<double, 6> incoming_{};  // power entering through each face in this sweep (W)
+    // Per psi buffer (its data pointer) and face: whether set_upwind_ghosts may have left a
+    // non-zero value in that boundary ghost plane (sky or mirror), so a vacuum face must clear it.
+    std::map<const double*, std::array<bool, 6>> ghost_nonzero_;
     // Outgoing current per boundary cell of each high reflective face (plane_index order), this
     // sweep and the one before (for_each_lagged_mirror_change).
     std::array<std::vector<double>, 6> mirror_current_, mirror_current_prev_;
