@@ -1,6 +1,7 @@
 #include "solvers/lpm/lpm.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <numeric>
@@ -10,6 +11,7 @@
 #include "src/core/error.h"
 #include "src/core/log.h"
 #include "src/core/progress.h"
+#include "src/physics/band_groups.h"
 #include "src/scene/emission.h"
 
 namespace nimbus {
@@ -44,43 +46,79 @@ public:
                          "model lpm: density must cover the rank's box with one ghost layer");
         ScopedTimer timer(ctx.report, "lpm");
         const lpm::Angular ang(opt_.p, opt_.k);
-        const int nb = ctx.medium.nbands();
+        const Medium& m = ctx.medium;
+        const int nb = m.nbands();
         const std::vector<VolumeSource> sources = volume_sources(ctx.scene);  // [[sources]], q = power / 4π
-        check_volume_sources(sources, ctx.medium.rho, d);
-        Progress progress("lpm map sweeps", static_cast<double>(nb * opt_.iterations * 6), d.rank() == 0);
+        check_volume_sources(sources, m.rho, d);
+        // Bands with equal optics share their map sweeps, one solve per colour of the source
+        // terms (src/physics/band_groups.h): the maps are linear in the source, so band b is a sum
+        // of scaled solves (the default cloud: the sun and the sky, 2 solves for 3 bands). Only the
+        // geometric tail, a ratio of the last two iterations, is not linear: it solves per band.
+        // Two solves also differ from one where the epsilon stop ends them at different
+        // iterations (each is then within its own epsilon) or the diffusion tail clamps a negative
+        // U (a few lit surface cells at most).
+        const std::vector<BandGroup> groups =
+            group_bands(m.bands, term_strengths(ctx.light.lights, sources, nb), opt_.tail != "geometric");
+        int nsolves = 0;
+        for (const BandGroup& g : groups) nsolves += static_cast<int>(g.rhs_weights.size());
+        Progress progress("lpm map sweeps", static_cast<double>(nsolves * opt_.iterations * 6), d.rank() == 0);
         out = DiffuseSolution{};
-        nlohmann::json bands = nlohmann::json::array();
         for (int b = 0; b < nb; ++b) {
-            lpm::BandResult r = lpm::solve_band(d, ctx.medium, ctx.light, b, opt_, ang, &progress, &ctx.report, sources);
-            const double total = std::accumulate(r.sweep_seconds.begin(), r.sweep_seconds.end(), 0.0);
-            const double mean = r.sweep_seconds.empty() ? 0.0 : total / static_cast<double>(r.sweep_seconds.size());
-            bands.push_back({{"band", ctx.medium.bands[static_cast<size_t>(b)].name},
-                             {"iterations", r.iterations},
-                             {"max_U_relative", r.max_U},
-                             {"seconds_per_map_sweep", mean},
-                             {"wait_seconds", r.wait_seconds},
-                             {"source_W", r.source},
-                             {"escaped_W", r.escaped},
-                             {"absorbed_W", r.absorbed},
-                             {"unpropagated_W", r.remaining},
-                             {"truncated_W", r.truncated},
-                             {"unpropagated_W_per_iteration", r.remaining_history},
-                             {"tail", opt_.tail},
-                             {"tail_geometric_factor", r.tail_factor},
-                             {"tail_diffusion_solver_iterations", r.tail_solver_iterations}});
-            if (d.rank() == 0)
-                log::info("lpm band {}: {} iterations, max U {:.3g} of the first-scatter maximum, {:.3g} s per map sweep, "
-                          "unpropagated {:.3g} of the scattered power",
-                          b, r.iterations, r.max_U.empty() ? 0.0 : r.max_U.back(), mean,
-                          r.source > 0 ? r.remaining / r.source : 0.0);
-            out.fluence.push_back(std::move(r.fluence));
-            if (opt_.solution_bins == 4) out.flux.push_back(std::move(r.flux));
+            out.fluence.emplace_back(d.local(), 1, 1, 0.0);
+            if (opt_.solution_bins == 4) out.flux.emplace_back(d.local(), 1, 3, 0.0);
         }
+        nlohmann::json solves = nlohmann::json::array();
+        for (const BandGroup& group : groups)
+            for (size_t rhs = 0; rhs < group.rhs_weights.size(); ++rhs) {
+                const std::vector<double>& weight = group.rhs_weights[rhs];
+                std::vector<std::string> band_names;
+                for (const BandUse& use : group.bands)
+                    for (const RhsTerm& t : use.terms)
+                        if (static_cast<size_t>(t.rhs) == rhs) band_names.push_back(m.bands[static_cast<size_t>(use.band)].name);
+                const double offset = static_cast<double>(solves.size()) * opt_.iterations * 6;
+                lpm::BandResult r = lpm::solve_sources(d, m, ctx.light, group.optics, weight, opt_, ang, &progress,
+                                                       offset, &ctx.report, sources);
+                const double total = std::accumulate(r.sweep_seconds.begin(), r.sweep_seconds.end(), 0.0);
+                const double mean = r.sweep_seconds.empty() ? 0.0 : total / static_cast<double>(r.sweep_seconds.size());
+                solves.push_back({{"bands", band_names},
+                                  {"terms", term_names(weight, ctx.light.lights, sources.size())},
+                                  {"iterations", r.iterations},
+                                  {"max_U_relative", r.max_U},
+                                  {"seconds_per_map_sweep", mean},
+                                  {"wait_seconds", r.wait_seconds},
+                                  {"source_W", r.source},
+                                  {"escaped_W", r.escaped},
+                                  {"absorbed_W", r.absorbed},
+                                  {"unpropagated_W", r.remaining},
+                                  {"truncated_W", r.truncated},
+                                  {"unpropagated_W_per_iteration", r.remaining_history},
+                                  {"tail", opt_.tail},
+                                  {"tail_geometric_factor", r.tail_factor},
+                                  {"tail_diffusion_solver_iterations", r.tail_solver_iterations}});
+                if (d.rank() == 0)
+                    log::info("lpm {} {}: {} iterations, max U {:.3g} of the first-scatter maximum, {:.3g} s per map "
+                              "sweep, unpropagated {:.3g} of the scattered power",
+                              band_names.size() == 1 ? "band" : "bands", fmt::join(band_names, ", "), r.iterations,
+                              r.max_U.empty() ? 0.0 : r.max_U.back(), mean, r.source > 0 ? r.remaining / r.source : 0.0);
+                // Each band that uses this solve adds it at its scale (owned cells and ghosts:
+                // both results are halo-exchanged).
+                for (const BandUse& use : group.bands)
+                    for (const RhsTerm& t : use.terms) {
+                        if (static_cast<size_t>(t.rhs) != rhs) continue;
+                        const size_t b = static_cast<size_t>(use.band);
+                        Field<double>& fl = out.fluence[b];
+                        for (size_t q = 0; q < fl.size(); ++q) fl.data()[q] += t.scale * r.fluence.data()[q];
+                        if (opt_.solution_bins == 4) {
+                            Field<double>& fx = out.flux[b];
+                            for (size_t q = 0; q < fx.size(); ++q) fx.data()[q] += t.scale * r.flux.data()[q];
+                        }
+                    }
+            }
         progress.finish();
         ctx.report.values()["lpm"] = {{"options", options()},
                                       {"map_directions", ang.map_bins()},
                                       {"coarse_bins", ang.coarse_bins()},
-                                      {"bands", bands}};
+                                      {"solves", solves}};
     }
 
 private:

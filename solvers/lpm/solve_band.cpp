@@ -25,10 +25,11 @@ double global_max(double v, MPI_Comm c) {
 
 }  // namespace
 
-BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransport& light, int band,
-                      const LpmOptions& opt, const Angular& ang, Progress* progress, Report* report,
-                      const std::vector<VolumeSource>& sources) {
-    const BandOptics& bo = m.bands[static_cast<size_t>(band)];
+BandResult solve_sources(const Decomposition& d, const Medium& m, const LightTransport& light, const BandOptics& bo,
+                         const std::vector<double>& strength, const LpmOptions& opt, const Angular& ang,
+                         Progress* progress, double progress_offset, Report* report,
+                         const std::vector<VolumeSource>& sources) {
+    const size_t nl = light.lights.size();
     const Box& own = d.local();
     const int nm = ang.coarse_bins();
     const double V = m.grid.cell_volume();
@@ -48,7 +49,7 @@ BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransp
     double source = 0.0;
     for (size_t l = 0; l < light.lights.size(); ++l) {
         const DirectionalLight& dl = light.lights[l];
-        const double E0 = band_value(dl.E0, band);
+        const double E0 = strength[l];
         if (E0 == 0.0) continue;
         const std::vector<double>& bf = ang.beam_factors(bo.g, dl.w);
         for_each_cell(own, [&](int i, int j, int k) {
@@ -64,7 +65,8 @@ BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransp
     // Volume emission: isotropic, power/4π in every bin (W/(m³ sr)).
     if (!sources.empty())
         for_each_cell(own, [&](int i, int j, int k) {
-            const double power = emitted_power(sources, m.rho, band, i, j, k);
+            const double power =
+                emitted_power_at(sources, m.rho, [&](size_t t) { return strength[nl + t]; }, i, j, k, {i, j, k});
             if (power == 0.0) return;
             source += power * V;
             double* u = &U(i, j, k);
@@ -105,7 +107,7 @@ BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransp
             const double t0 = MPI_Wtime();
             sweep_map(d, f, in, acc);
             r.sweep_seconds.push_back(MPI_Wtime() - t0);
-            if (progress) progress->update(static_cast<double>(band * opt.iterations * 6) + static_cast<double>(r.sweep_seconds.size()));
+            if (progress) progress->update(progress_offset + static_cast<double>(r.sweep_seconds.size()));
         }
         ++r.iterations;
         double u_max = 0.0, left = 0.0;
@@ -117,8 +119,7 @@ BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransp
         });
         r.max_U.push_back(global_max(u_max, d.comm()) / u_max0);
         r.remaining_history.push_back(global_sum(left, d.comm()));
-        log::debug("lpm: band {} iteration {}: max U / initial {:.3e}, unpropagated power {:.4g} W", band,
-                   r.iterations, r.max_U.back(), r.remaining_history.back());
+        log::debug("lpm: iteration {}: max U / initial {:.3e}, unpropagated power {:.4g} W", r.iterations, r.max_U.back(), r.remaining_history.back());
         if (r.max_U.back() < opt.epsilon) break;
     }
 
@@ -144,7 +145,7 @@ BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransp
         // The flux, when asked for, is left without the tail (its increment is not kept).
     } else if (opt.tail == "diffusion" && r.remaining > 0.0) {
         Report scratch;
-        DiffusionTail t = diffusion_tail(d, m, band, U, kappa, ang, report ? *report : scratch);
+        DiffusionTail t = diffusion_tail(d, m, bo, U, kappa, ang, report ? *report : scratch);
         r.tail_solver_iterations = t.solver_iterations;
         for_each_cell(own, [&](int i, int j, int k) {
             fluence(i, j, k) += t.fluence(i, j, k);
@@ -159,6 +160,16 @@ BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransp
         r.flux = std::move(flux);
     }
     return r;
+}
+
+BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransport& light, int band,
+                      const LpmOptions& opt, const Angular& ang, Progress* progress, Report* report,
+                      const std::vector<VolumeSource>& sources) {
+    std::vector<double> strength;
+    for (const DirectionalLight& l : light.lights) strength.push_back(band_value(l.E0, band));
+    for (const VolumeSource& v : sources) strength.push_back(v.power[static_cast<size_t>(band)]);
+    return solve_sources(d, m, light, m.bands[static_cast<size_t>(band)], strength, opt, ang, progress,
+                         static_cast<double>(band * opt.iterations * 6), report, sources);
 }
 
 }  // namespace nimbus::lpm

@@ -25,6 +25,7 @@
 #include "src/model/options.h"
 #include "src/scene/emission.h"
 #include "src/scene/medium.h"
+#include "src/scene/scene.h"
 
 namespace nimbus::lpm {
 
@@ -47,8 +48,17 @@ struct BandResult {
 inline constexpr int kMapOrder[6] = {5, 4, 0, 1, 2, 3};
 
 // Collective. m.rho must have its ghost layer exchanged; light.tau_rho per light term.
-// report: receives the diffusion tail's solver record (a scratch report when null).
-// sources: the scene's volume sources (volume_sources), none by default.
+// The problem has optics bo and the source terms at the given strengths (band_groups.h order:
+// E0 of each light of `light` in W/m², then each volume source's power in W/m³); terms of
+// strength 0 are left out. report: receives the diffusion tail's solver record (a scratch report
+// when null). progress: advanced by one per map sweep from progress_offset.
+BandResult solve_sources(const Decomposition& d, const Medium& m, const LightTransport& light, const BandOptics& bo,
+                         const std::vector<double>& strength, const LpmOptions& opt, const Angular& ang,
+                         Progress* progress, double progress_offset, Report* report,
+                         const std::vector<VolumeSource>& sources);
+
+// Band `band` of m with its own light and emission (sources: the scene's volume sources,
+// volume_sources; none by default).
 BandResult solve_band(const Decomposition& d, const Medium& m, const LightTransport& light, int band,
                       const LpmOptions& opt, const Angular& ang, Progress* progress = nullptr,
                       Report* report = nullptr, const std::vector<VolumeSource>& sources = {});

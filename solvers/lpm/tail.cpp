@@ -22,9 +22,8 @@ void add_geometric_tail(Field<double>& fluence, const Field<double>& previous, d
     });
 }
 
-DiffusionTail diffusion_tail(const Decomposition& d, const Medium& m, int band, const Field<double>& U,
+DiffusionTail diffusion_tail(const Decomposition& d, const Medium& m, const BandOptics& bo, const Field<double>& U,
                              const Field<double>& kappa, const Angular& ang, Report& report) {
-    const BandOptics& bo = m.bands[static_cast<size_t>(band)];
     const int nm = ang.coarse_bins();
     // Coarse-bin mean directions (1/|Ω^m|) ∫_{Ω^m} ω dω from the nested map bins.
     std::vector<Vec3> mean(static_cast<size_t>(nm));

@@ -39,7 +39,7 @@ struct DiffusionTail {
 
 // Collective. U: owned, coarse bins of ang; kappa: owned + ghost (halo-exchanged), 1/m.
 // Throws Error when nimbus was built without the diffusion model.
-DiffusionTail diffusion_tail(const Decomposition& d, const Medium& m, int band, const Field<double>& U,
+DiffusionTail diffusion_tail(const Decomposition& d, const Medium& m, const BandOptics& bo, const Field<double>& U,
                              const Field<double>& kappa, const Angular& ang, Report& report);
 
 }  // namespace nimbus::lpm
