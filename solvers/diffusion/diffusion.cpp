@@ -179,13 +179,9 @@ private:
         nlohmann::json& systems = report.values()["diffusion"]["systems"];
         for (size_t e = from; e < systems.size(); ++e) {
             const size_t rhs = systems[e]["rhs"].get<size_t>();
-            std::vector<std::string> bands;
-            for (const auto& use : group.bands)
-                for (const auto& t : use.terms)
-                    if (static_cast<size_t>(t.rhs) == rhs) bands.push_back(m.bands[static_cast<size_t>(use.band)].name);
             const std::vector<double>& weight = group.rhs_weights[rhs];
             systems[e]["matrix"] = g;
-            systems[e]["bands"] = bands;
+            systems[e]["bands"] = rhs_band_names(group, rhs, m.bands);
             systems[e]["terms"] = term_names(weight, lights, weight.size() - lights.size());
         }
     }

@@ -151,10 +151,7 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
     for (const BandGroup& group : groups)
         for (size_t r = 0; r < group.rhs_weights.size(); ++r) {
             const std::vector<double>& weight = group.rhs_weights[r];
-            std::vector<std::string> band_names;
-            for (const BandUse& use : group.bands)
-                for (const RhsTerm& t : use.terms)
-                    if (static_cast<size_t>(t.rhs) == r) band_names.push_back(m.bands[static_cast<size_t>(use.band)].name);
+            const std::vector<std::string> band_names = rhs_band_names(group, r, m.bands);
             const std::string for_bands = fmt::format("{} {}", band_names.size() == 1 ? "band" : "bands",
                                                       fmt::join(band_names, ", "));
             nlohmann::json entry = {{"bands", band_names},

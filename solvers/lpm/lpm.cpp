@@ -71,10 +71,7 @@ public:
         for (const BandGroup& group : groups)
             for (size_t rhs = 0; rhs < group.rhs_weights.size(); ++rhs) {
                 const std::vector<double>& weight = group.rhs_weights[rhs];
-                std::vector<std::string> band_names;
-                for (const BandUse& use : group.bands)
-                    for (const RhsTerm& t : use.terms)
-                        if (static_cast<size_t>(t.rhs) == rhs) band_names.push_back(m.bands[static_cast<size_t>(use.band)].name);
+                const std::vector<std::string> band_names = rhs_band_names(group, rhs, m.bands);
                 const double offset = static_cast<double>(solves.size()) * opt_.iterations * 6;
                 lpm::BandResult r = lpm::solve_sources(d, m, ctx.light, group.optics, weight, opt_, ang, &progress,
                                                        offset, &ctx.report, sources);

@@ -107,6 +107,14 @@ std::vector<std::vector<double>> term_strengths(const std::vector<DirectionalLig
     return strength;
 }
 
+std::vector<std::string> rhs_band_names(const BandGroup& g, size_t rhs, const std::vector<BandOptics>& bands) {
+    std::vector<std::string> names;
+    for (const BandUse& use : g.bands)
+        for (const RhsTerm& t : use.terms)
+            if (static_cast<size_t>(t.rhs) == rhs) names.push_back(bands[static_cast<size_t>(use.band)].name);
+    return names;
+}
+
 std::vector<std::string> term_names(const std::vector<double>& weights, const std::vector<DirectionalLight>& lights,
                                     size_t nsources) {
     std::vector<std::string> names;

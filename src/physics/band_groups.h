@@ -48,6 +48,10 @@ std::vector<BandGroup> group_bands(const std::vector<BandOptics>& bands,
 std::vector<std::vector<double>> term_strengths(const std::vector<DirectionalLight>& lights,
                                                 const std::vector<VolumeSource>& sources, int nbands);
 
+// The names of the bands of group g that use right-hand side rhs (bands: all bands of the run),
+// in band order, for reports and messages.
+std::vector<std::string> rhs_band_names(const BandGroup& g, size_t rhs, const std::vector<BandOptics>& bands);
+
 // The names of the terms that right-hand side weights holds (non-zero weight), for reports: a
 // light by its name, "sky" once for all its direction bins ("sky[...]"), a volume source as
 // "sources[i]" (terms lights.size() on), and "sky" for a term past the volume sources (DOM's

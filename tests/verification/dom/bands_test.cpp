@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "solvers/dom/dom.h"
+#include "tests/support/band_copies.h"
 #include "tests/support/mpi_test.h"
 #include "tests/verification/dom/dom_world.h"
 
@@ -39,12 +40,7 @@ BandsRun solve_bands(const std::vector<int>& bands, const std::string& sky) {
         w.m.rho(i, j, k) = (i * 3 + j * 5 + k) % 7 == 0 ? 0.0 : 0.4 + 0.15 * ((i + 2 * j + k) % 5);
     });
     exchange_halo(w.m.rho, w.d);
-    w.m.bands.clear();
-    for (int b : bands) {
-        BandOptics o = optics;
-        o.name = "band" + std::to_string(b);
-        w.m.bands.push_back(o);
-    }
+    w.m.bands = test::band_copies(optics, bands);
     w.scene.bands = w.m.bands;
     w.scene.grid.cell_size = kH;
     w.add_sun_from_top({0.3, 0.2, -1.0});

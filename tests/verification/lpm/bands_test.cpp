@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "solvers/lpm/lpm.h"
+#include "tests/support/band_copies.h"
 #include "tests/support/mpi_test.h"
 #include "tests/verification/lpm/lpm_world.h"
 
@@ -43,12 +44,7 @@ BandsRun solve_bands(const std::vector<int>& bands, const std::string& tail) {
     }
     const BandOptics optics{"band", 0.8, 0.95, 0.6};
     test::LpmWorld w(MPI_COMM_WORLD, {12, 12, 12}, {false, false, false}, puff, optics, lights);
-    w.m.bands.clear();
-    for (int b : bands) {
-        BandOptics o = optics;
-        o.name = "band" + std::to_string(b);
-        w.m.bands.push_back(o);
-    }
+    w.m.bands = test::band_copies(optics, bands);
     w.scene.bands = w.m.bands;
     w.scene.grid.cell_size = w.m.grid.h;
     w.scene.sources = {SourceSpec{{3.0, 3.0, 3.0}, {7.0, 6.0, 5.0}, power}};
