@@ -194,8 +194,10 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
                                         "model.dom.iteration = \"gmres\"", for_bands, res.iterations,
                                         opt_.iteration, opt_.tolerance, dom::format_history(res.history)));
             }
-            // Energy balance of the scaled problem: emitted + first-collision = absorbed + leaked
-            // (the sky as boundary radiance enters as negative leakage).
+            // Energy balance of the scaled problem: emitted + first-collision = absorbed + net
+            // leakage (light that came in through the faces, the sky as boundary radiance or a
+            // mirror, counts against it), relative to the external power: the sources and the
+            // sky's incoming light.
             double e[2] = {0.0, 0.0};
             const double vol = m.grid.cell_volume();
             for_each_cell(own, [&](int i, int j, int k) {
@@ -215,9 +217,11 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
             entry["delta_m_f"] = p.phase.f;
             entry["seconds"] = seconds;
             entry["source_power"] = e[0];
+            entry["sky_incoming_power"] = sw.sky_incoming;
             entry["absorbed_power"] = e[1];
             entry["leakage"] = sw.leakage;
-            entry["energy_balance"] = e[0] > 0 ? (e[0] - e[1] - leaked) / e[0] : 0.0;
+            const double power_in = e[0] + sw.sky_incoming;
+            entry["energy_balance"] = power_in > 0 ? (e[0] - e[1] - leaked) / power_in : 0.0;
             rec["solves"].push_back(entry);
             // Sky as boundary radiance: psi holds the uncollided sky too; DESIGN's fluence_diffuse
             // excludes it, so subtract the discrete uncollided sky (one sweep, true kappa: the

@@ -235,6 +235,7 @@ void TransportSweeper::set_upwind_ghosts(Field<double>& psi, int o) {
             }
         });
         incoming_[static_cast<size_t>(f)] += h_ * h_ * power;
+        if (sky) sky_incoming_ += h_ * h_ * power;
     }
 }
 
@@ -307,6 +308,7 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
     out.leakage.fill(0.0);
     out.min_psi = std::numeric_limits<double>::infinity();
     incoming_.fill(0.0);
+    sky_incoming_ = 0.0;
     for (size_t f = 1; f < 6; f += 2) {  // this sweep's outgoing currents start from zero
         std::swap(mirror_current_[f], mirror_current_prev_[f]);
         std::fill(mirror_current_[f].begin(), mirror_current_[f].end(), 0.0);
@@ -455,8 +457,12 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
         out.fluence.fill(0.0);
         out.flux.fill(0.0);
     }
-    for (size_t f = 0; f < 6; ++f) out.leakage[f] -= incoming_[f];  // net leakage
-    MPI_Allreduce(MPI_IN_PLACE, out.leakage.data(), 6, MPI_DOUBLE, MPI_SUM, d_.comm());
+    std::array<double, 7> power{};  // net leakage per face, then the sky's incoming power
+    for (size_t f = 0; f < 6; ++f) power[f] = out.leakage[f] - incoming_[f];
+    power[6] = sky_incoming_;
+    MPI_Allreduce(MPI_IN_PLACE, power.data(), 7, MPI_DOUBLE, MPI_SUM, d_.comm());
+    std::copy_n(power.begin(), 6, out.leakage.begin());
+    out.sky_incoming = power[6];
     const double failure = periodic_failure_;
     periodic_failure_ = 0.0;
     check_collective(d_.comm(), failure == 0.0,

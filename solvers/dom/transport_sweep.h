@@ -48,7 +48,8 @@
 // Σ_n w_n psi_n (W/m²), the flux Σ_n w_n Ω_n psi_n, and the NET power leaving through each
 // non-periodic domain face, Σ_faces h² Σ_n w_n |Ω·n| (psi_out,face - psi_in,face) (W; face
 // value = cell value for the step scheme, the outgoing face value for diamond; psi_in = 0 on
-// vacuum faces), order x-, x+, y-, y+, z-, z+; summed over ranks.
+// vacuum faces), order x-, x+, y-, y+, z-, z+; summed over ranks; and the power the sky radiance
+// brought in (sky faces only, not mirrored light), summed over ranks.
 //
 // Collective over d.comm(). Not thread-safe. The Decomposition and AngularSet must outlive it.
 #pragma once
@@ -79,6 +80,7 @@ struct SweepOutput {
     Field<double> fluence;  // 1 component
     Field<double> flux;     // 3 components
     std::array<double, 6> leakage{};
+    double sky_incoming = 0;  // power the sky radiance brought in through the faces, W, all ranks
     double min_psi = 0;     // smallest cell or face angular flux of the sweep, this rank
 };
 
@@ -173,6 +175,7 @@ private:
     // this rank) for the octant o leaving through it, plane cells x nd.
     std::array<std::array<std::vector<double>, 8>, 6> reflected_;
     std::array<double, 6> incoming_{};  // power entering through each face in this sweep (W)
+    double sky_incoming_ = 0.0;         // of which the sky radiance's, all faces (W)
     // Per psi buffer (its data pointer) and face: whether set_upwind_ghosts may have left a
     // non-zero value in that boundary ghost plane (sky or mirror), so a vacuum face must clear it.
     std::map<const double*, std::array<bool, 6>> ghost_nonzero_;

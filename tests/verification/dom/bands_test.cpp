@@ -2,7 +2,8 @@
 // a sun, a second light of another colour ("sky[0]") and a volume source of the sun's colour are
 // two solves, (sun + source) and sky, and each band equals the band solved alone to the
 // iteration tolerance; the same with the sky as boundary radiance (sky = "boundary"), where the
-// sky is a source term of its own. The report names the bands and terms of each solve.
+// sky is a source term of its own. The report names the bands and terms of each solve, and each
+// solve's energy balance closes (the sky's too, on the power it brings in through the faces).
 #include <gtest/gtest.h>
 
 #include <array>
@@ -75,6 +76,13 @@ void expect_bands_equal_alone(const std::string& sky) {
     for (const auto& s : all.solves) EXPECT_EQ(s["bands"], nlohmann::json::array({"band0", "band1", "band2"}));
     EXPECT_EQ(all.solves[0]["terms"], nlohmann::json::array({"sun", "sources[0]"}));
     EXPECT_EQ(all.solves[1]["terms"], nlohmann::json::array({"sky"}));
+    // Every solve closes its energy balance, the sky's alone too: as boundary radiance its power
+    // comes in through the faces (sky_incoming_power), not from a volume source.
+    for (const auto& s : all.solves) EXPECT_LT(std::abs(s["energy_balance"].get<double>()), 1e-8) << s.dump();
+    if (sky == "boundary") {
+        EXPECT_EQ(all.solves[1]["source_power"].get<double>(), 0.0);
+        EXPECT_GT(all.solves[1]["sky_incoming_power"].get<double>(), 0.0);
+    }
     Decomposition d(MPI_COMM_WORLD, {kN, kN, kN});
     for (int b = 0; b < 3; ++b) {
         const BandsRun one = solve_bands({b}, sky);
