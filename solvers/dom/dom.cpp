@@ -230,19 +230,17 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
             const bool sky_lit = bc.sky && weight[sky_term] != 0.0;
             if (sky_lit) uncollided_sky(m, group.optics, ang, sweeper, unc);
             // Each band that uses this solve adds it at its scale.
-            for (const BandUse& use : group.bands)
-                for (const RhsTerm& t : use.terms) {
-                    if (static_cast<size_t>(t.rhs) != r) continue;
-                    Field<double>& fl = out.fluence[static_cast<size_t>(use.band)];
-                    Field<double>& fx = out.flux[static_cast<size_t>(use.band)];
-                    for_each_cell(own, [&](int i, int j, int k) {
-                        fl(i, j, k) += t.scale * (sw.fluence(i, j, k) + p.forward_fluence(i, j, k) -
-                                                  (sky_lit ? unc.fluence(i, j, k) : 0.0));
-                        for (int c = 0; c < 3; ++c)
-                            fx(i, j, k, c) += t.scale * (sw.flux(i, j, k, c) + p.forward_flux(i, j, k, c) -
-                                                         (sky_lit ? unc.flux(i, j, k, c) : 0.0));
-                    });
-                }
+            for_each_use(group, r, [&](int band, double scale) {
+                Field<double>& fl = out.fluence[static_cast<size_t>(band)];
+                Field<double>& fx = out.flux[static_cast<size_t>(band)];
+                for_each_cell(own, [&](int i, int j, int k) {
+                    fl(i, j, k) += scale * (sw.fluence(i, j, k) + p.forward_fluence(i, j, k) -
+                                            (sky_lit ? unc.fluence(i, j, k) : 0.0));
+                    for (int c = 0; c < 3; ++c)
+                        fx(i, j, k, c) += scale * (sw.flux(i, j, k, c) + p.forward_flux(i, j, k, c) -
+                                                   (sky_lit ? unc.flux(i, j, k, c) : 0.0));
+                });
+            });
         }
     for (int b = 0; b < m.nbands(); ++b) {
         exchange_halo(out.fluence[static_cast<size_t>(b)], d);

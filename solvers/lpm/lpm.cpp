@@ -99,17 +99,15 @@ public:
                               r.max_U.empty() ? 0.0 : r.max_U.back(), mean, r.source > 0 ? r.remaining / r.source : 0.0);
                 // Each band that uses this solve adds it at its scale (owned cells and ghosts:
                 // both results are halo-exchanged).
-                for (const BandUse& use : group.bands)
-                    for (const RhsTerm& t : use.terms) {
-                        if (static_cast<size_t>(t.rhs) != rhs) continue;
-                        const size_t b = static_cast<size_t>(use.band);
-                        Field<double>& fl = out.fluence[b];
-                        for (size_t q = 0; q < fl.size(); ++q) fl.data()[q] += t.scale * r.fluence.data()[q];
-                        if (opt_.solution_bins == 4) {
-                            Field<double>& fx = out.flux[b];
-                            for (size_t q = 0; q < fx.size(); ++q) fx.data()[q] += t.scale * r.flux.data()[q];
-                        }
+                for_each_use(group, rhs, [&](int band, double scale) {
+                    const auto b = static_cast<size_t>(band);
+                    Field<double>& fl = out.fluence[b];
+                    for (size_t q = 0; q < fl.size(); ++q) fl.data()[q] += scale * r.fluence.data()[q];
+                    if (opt_.solution_bins == 4) {
+                        Field<double>& fx = out.flux[b];
+                        for (size_t q = 0; q < fx.size(); ++q) fx.data()[q] += scale * r.flux.data()[q];
                     }
+                });
             }
         progress.finish();
         ctx.report.values()["lpm"] = {{"options", options()},

@@ -119,7 +119,8 @@ BandResult solve_sources(const Decomposition& d, const Medium& m, const LightTra
         });
         r.max_U.push_back(global_max(u_max, d.comm()) / u_max0);
         r.remaining_history.push_back(global_sum(left, d.comm()));
-        log::debug("lpm: iteration {}: max U / initial {:.3e}, unpropagated power {:.4g} W", r.iterations, r.max_U.back(), r.remaining_history.back());
+        log::debug("lpm: iteration {}: max U / initial {:.3e}, unpropagated power {:.4g} W", r.iterations,
+                   r.max_U.back(), r.remaining_history.back());
         if (r.max_U.back() < opt.epsilon) break;
     }
 

@@ -109,9 +109,7 @@ std::vector<std::vector<double>> term_strengths(const std::vector<DirectionalLig
 
 std::vector<std::string> rhs_band_names(const BandGroup& g, size_t rhs, const std::vector<BandOptics>& bands) {
     std::vector<std::string> names;
-    for (const BandUse& use : g.bands)
-        for (const RhsTerm& t : use.terms)
-            if (static_cast<size_t>(t.rhs) == rhs) names.push_back(bands[static_cast<size_t>(use.band)].name);
+    for_each_use(g, rhs, [&](int band, double) { names.push_back(bands[static_cast<size_t>(band)].name); });
     return names;
 }
 

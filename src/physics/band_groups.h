@@ -48,6 +48,14 @@ std::vector<BandGroup> group_bands(const std::vector<BandOptics>& bands,
 std::vector<std::vector<double>> term_strengths(const std::vector<DirectionalLight>& lights,
                                                 const std::vector<VolumeSource>& sources, int nbands);
 
+// Calls f(band, scale) for each band of g that uses right-hand side rhs: U_band += scale U_rhs.
+template <class F>
+void for_each_use(const BandGroup& g, size_t rhs, F&& f) {
+    for (const BandUse& use : g.bands)
+        for (const RhsTerm& t : use.terms)
+            if (static_cast<size_t>(t.rhs) == rhs) f(use.band, t.scale);
+}
+
 // The names of the bands of group g that use right-hand side rhs (bands: all bands of the run),
 // in band order, for reports and messages.
 std::vector<std::string> rhs_band_names(const BandGroup& g, size_t rhs, const std::vector<BandOptics>& bands);
