@@ -196,14 +196,15 @@ void matvec(double alpha, const Matrix& A, const Vector& x, double beta, Vector&
 
 Solver::Solver(MPI_Comm comm, const std::string& kind, bool periodic) : comm_(comm) {
     const bool pcg = kind == "pfmg-pcg" || kind == "smg-pcg";
-    const bool pfmg = kind == "pfmg" || kind == "pfmg-pcg";
-    if (!pcg && kind != "pfmg" && kind != "smg") throw Error("diffusion: unknown hypre solver '" + kind + "'");
+    const bool cycle = kind == "pfmg-cycle";  // one V-cycle as PCG's preconditioner runs it
+    const bool pfmg = kind == "pfmg" || kind == "pfmg-pcg" || cycle;
+    if (!pcg && !pfmg && kind != "smg") throw Error("diffusion: unknown hypre solver '" + kind + "'");
     mg_calls_ = pfmg ? &kPfmg : &kSmg;
     calls_ = pcg ? &kPcg : mg_calls_;
     HYPRE_StructSolver& mg = pcg ? precond_ : solver_;
     if (pfmg) {
         HYPRE_StructPFMGCreate(comm, &mg);
-        configure_pfmg(mg, pcg, periodic);
+        configure_pfmg(mg, pcg || cycle, periodic);
     } else {
         HYPRE_StructSMGCreate(comm, &mg);
         configure_smg(mg, pcg);

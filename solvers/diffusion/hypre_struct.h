@@ -95,8 +95,9 @@ struct SolverCalls;  // hypre_struct.cpp
 // y = alpha A x + beta y (collective).
 void matvec(double alpha, const Matrix& A, const Vector& x, double beta, Vector& y);
 
-// One of pfmg | smg | pfmg-pcg | smg-pcg. PCG uses the 2-norm stopping test
-// ||r|| <= tol ||b|| (HYPRE_StructPCGSetTwoNorm).
+// One of pfmg | smg | pfmg-pcg | smg-pcg, or pfmg-cycle: one PFMG V-cycle from a zero guess
+// with no residual test, set up as PCG's preconditioner (a fixed linear map; DOM's DSA filters
+// with it). PCG uses the 2-norm stopping test ||r|| <= tol ||b|| (HYPRE_StructPCGSetTwoNorm).
 class Solver {
 public:
     // periodic: the grid has a periodic axis (selects a smoother that stays symmetric there).

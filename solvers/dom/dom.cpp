@@ -182,13 +182,10 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
                 if (res.stalled)
                     throw Error(fmt::format(
                         "dom: the solve of {} diverges with iteration = \"{}\": the relative change has stayed above "
-                        "{:g} times its lowest value for {} iterations ({}){}; use model.dom.iteration = "
+                        "{:g} times its lowest value for {} iterations ({}); use model.dom.iteration = "
                         "\"gmres\" (DSA-preconditioned GMRES)",
                         for_bands, opt_.iteration, dom::kStallGrowth, dom::kStallWindow,
-                        dom::format_history(res.history),
-                        group.optics.g < 0 ? fmt::format(" - DSA's isotropic correction diverges on strongly "
-                                                         "backscattering media (g = {})", group.optics.g)
-                                           : ""));
+                        dom::format_history(res.history)));
                 throw Error(fmt::format("dom: the solve of {} did not converge in {} {} iterations (tolerance {:.1e}); "
                                         "relative change: {}; raise model.dom.max_iterations or use "
                                         "model.dom.iteration = \"gmres\"", for_bands, res.iterations,

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <numbers>
 
 #include "solvers/diffusion/solve_region.h"
 #include "src/core/error.h"
@@ -16,6 +17,26 @@ double global_norm(const std::vector<double>& v, MPI_Comm comm) {
     for (double a : v) s += a * a;
     MPI_Allreduce(MPI_IN_PLACE, &s, 1, MPI_DOUBLE, MPI_SUM, comm);
     return std::sqrt(s);
+}
+
+// The 7-point matrix of a's rows on box (symmetric storage), assembled.
+std::unique_ptr<diffusion::hypre::Matrix> assemble_matrix(MPI_Comm comm, const diffusion::Assembler& a, const Box& box,
+                                                          const diffusion::hypre::Grid& grid,
+                                                          const diffusion::hypre::SymmetricStencil7& stencil) {
+    namespace hy = diffusion::hypre;
+    auto A = std::make_unique<hy::Matrix>(comm, grid, stencil);
+    std::vector<double> values(static_cast<size_t>(box.cells()) * hy::SymmetricStencil7::kEntries);
+    size_t n = 0;
+    for_each_cell(box, [&](int i, int j, int k) {
+        const diffusion::CellRow row = a.row(i, j, k);
+        values[n++] = row.diag;
+        values[n++] = -row.coupling[diffusion::kXm];
+        values[n++] = -row.coupling[diffusion::kYm];
+        values[n++] = -row.coupling[diffusion::kZm];
+    });
+    A->set_box_values(box, values);
+    A->assemble();
+    return A;
 }
 
 }  // namespace
@@ -41,37 +62,30 @@ DiffusionSynthetic::DiffusionSynthetic(const Decomposition& d, const BandProblem
     exchange_halo(dp_.kappa_tr, d);
     dp_.Q0.emplace_back(own, 0, 1, 0.0);
     dp_.G.emplace_back(own, 1, 3, 0.0);
+    chi1_ = p.phase.chi.size() > 1 ? p.phase.chi[1] : 0.0;
     opt_.solver = "pfmg-pcg";
     opt_.tolerance = tolerance;
     opt_.max_iterations = 200;
     region_ = diffusion::find_solve_region(d, dp_, opt_.margin);
     delta_ = Field<double>(own, 0, 1, 0.0);
+    current_ = Field<double>(own, 0, 3, 0.0);
     if (region_.box.empty()) return;  // same answer on every rank: nothing is set up anywhere
     kappa_floor_ = 1.0 / diffusion::default_transport_length(region_, dp_);
 
     // Assemble the matrix and set up PFMG-PCG once (collective; see linear_solve.h).
     namespace hy = diffusion::hypre;
-    const diffusion::Assembler assembler(dp_, kappa_floor_);
+    assembler_ = std::make_unique<diffusion::Assembler>(dp_, kappa_floor_);
+    const diffusion::Assembler& assembler = *assembler_;
     box_ = own.intersect(region_.box);
     Int3 period{0, 0, 0};
     for (int a = 0; a < 3; ++a) period[a] = (dp_.periodic[a] && dp_.n[a] > 1) ? dp_.n[a] : 0;
     grid_ = std::make_unique<hy::Grid>(d.comm(), box_, period);
     stencil_ = std::make_unique<hy::SymmetricStencil7>();
-    A_ = std::make_unique<hy::Matrix>(d.comm(), *grid_, *stencil_);
+    A_ = assemble_matrix(d.comm(), assembler, box_, *grid_, *stencil_);
     const size_t ncell = static_cast<size_t>(box_.cells());
-    std::vector<double> values(ncell * hy::SymmetricStencil7::kEntries);
     full_.assign(ncell, 0);
-    size_t n = 0, c = 0;
-    for_each_cell(box_, [&](int i, int j, int k) {
-        const diffusion::CellRow row = assembler.row(i, j, k);
-        values[n++] = row.diag;
-        values[n++] = -row.coupling[diffusion::kXm];
-        values[n++] = -row.coupling[diffusion::kYm];
-        values[n++] = -row.coupling[diffusion::kZm];
-        full_[c++] = assembler.full(i, j, k) ? 1 : 0;
-    });
-    A_->set_box_values(box_, values);
-    A_->assemble();
+    size_t n = 0;
+    for_each_cell(box_, [&](int i, int j, int k) { full_[n++] = assembler.full(i, j, k) ? 1 : 0; });
     b_ = std::make_unique<hy::Vector>(d.comm(), *grid_);
     x_ = std::make_unique<hy::Vector>(d.comm(), *grid_);
     r_ = std::make_unique<hy::Vector>(d.comm(), *grid_);
@@ -81,34 +95,101 @@ DiffusionSynthetic::DiffusionSynthetic(const Decomposition& d, const BandProblem
     solver_->set_max_iterations(opt_.max_iterations);  // the largest limit, before setup
     solver_->set_tolerance(opt_.tolerance);
     solver_->setup(*A_, *b_, *x_);
+    if (chi1_ != 0.0) set_up_current_filter(period);
+}
+
+// The filter of the current's source (dsa.h): -∇·(nu ∇u) + kappa_tr u = kappa_tr G per
+// component, nu = kCurrentFilterWidth / kappa*, as a diffusion problem (D = nu: kappa_tr of the
+// assembly kappa* / (3 kCurrentFilterWidth)), Marshak at empty cells and the domain boundary, no
+// flux through mirror faces; one PFMG V-cycle from zero (hypre::Solver "pfmg-cycle"), a linear map.
+void DiffusionSynthetic::set_up_current_filter(const Int3& period) {
+    namespace hy = diffusion::hypre;
+    const Box& own = d_.local();
+    fp_.h = dp_.h;
+    fp_.n = dp_.n;
+    fp_.periodic = dp_.periodic;
+    fp_.reflective = dp_.reflective;
+    fp_.kappa_tr = Field<double>(own, 1, 1, 0.0);
+    fp_.sigma_a = Field<double>(own, 0, 1, 0.0);
+    for_each_cell(own, [&](int i, int j, int k) {
+        if (p_.kappa_tr(i, j, k) <= 0.0) return;  // the same empty cells as the DSA problem
+        fp_.kappa_tr(i, j, k) = p_.kappa(i, j, k) / (3.0 * kCurrentFilterWidth);
+        fp_.sigma_a(i, j, k) = p_.kappa_tr(i, j, k);
+    });
+    exchange_halo(fp_.kappa_tr, d_);
+    const diffusion::Assembler assembler(fp_, kappa_floor_);
+    filter_A_ = assemble_matrix(d_.comm(), assembler, box_, *grid_, *stencil_);
+    filter_ = std::make_unique<hy::Solver>(d_.comm(), "pfmg-cycle", period[0] + period[1] + period[2] > 0);
+    filter_->setup(*filter_A_, *b_, *x_);
+}
+
+// G <- the filtered G, component by component (owned cells of box_; 0 elsewhere).
+void DiffusionSynthetic::filter_current_source(Field<double>& G) {
+    const size_t ncell = static_cast<size_t>(box_.cells());
+    const double h2 = p_.h * p_.h;
+    std::vector<double> b(ncell), x(ncell);
+    for (int c = 0; c < 3; ++c) {
+        size_t n = 0;
+        for_each_cell(box_, [&](int i, int j, int k) {
+            b[n] = full_[n] ? h2 * p_.kappa_tr(i, j, k) * G(i, j, k, c) : 0.0;
+            x[n++] = 0.0;
+        });
+        b_->set_box_values(box_, b);
+        b_->assemble();
+        x_->set_box_values(box_, x);
+        x_->assemble();
+        filter_->solve(*filter_A_, *b_, *x_);
+        x_->get_box_values(box_, x);
+        n = 0;
+        for_each_cell(box_, [&](int i, int j, int k) {
+            G(i, j, k, c) = full_[n] ? x[n] : 0.0;
+            ++n;
+        });
+    }
 }
 
 DiffusionSynthetic::~DiffusionSynthetic() = default;
 
-int DiffusionSynthetic::correct(const Field<double>& fluence_old, Field<double>& fluence,
-                                const Field<double>* mirror_source) {
+int DiffusionSynthetic::correct(const Field<double>& fluence_old, const Field<double>& flux_old,
+                                Field<double>& fluence, Field<double>& flux, const Field<double>* mirror_source) {
     const Box& own = d_.local();
-    if (change_.owned().empty()) change_ = Field<double>(own, 0, 1, 0.0);
-    for_each_cell(own, [&](int i, int j, int k) { change_(i, j, k) = fluence(i, j, k) - fluence_old(i, j, k); });
-    const int iterations = solve(change_, mirror_source);
-    for_each_cell(own, [&](int i, int j, int k) { fluence(i, j, k) += delta_(i, j, k); });
+    if (change_.owned().empty()) {
+        change_ = Field<double>(own, 0, 1, 0.0);
+        flux_change_ = Field<double>(own, 0, 3, 0.0);
+    }
+    for_each_cell(own, [&](int i, int j, int k) {
+        change_(i, j, k) = fluence(i, j, k) - fluence_old(i, j, k);
+        for (int c = 0; c < 3; ++c) flux_change_(i, j, k, c) = flux(i, j, k, c) - flux_old(i, j, k, c);
+    });
+    const int iterations = solve(change_, &flux_change_, mirror_source);
+    for_each_cell(own, [&](int i, int j, int k) {
+        fluence(i, j, k) += delta_(i, j, k);
+        for (int c = 0; c < 3; ++c) flux(i, j, k, c) += current_(i, j, k, c);
+    });
     return iterations;
 }
 
-int DiffusionSynthetic::solve(const Field<double>& r, const Field<double>* mirror_source) {
+int DiffusionSynthetic::solve(const Field<double>& r0, const Field<double>* r1, const Field<double>* mirror_source) {
     delta_.fill(0.0);
+    current_.fill(0.0);
     if (!solver_) return 0;
-    // b = h² (sigma_s r + dJ/h on high mirror faces) in full cells, 0 in empty ones:
-    // Assembler::rhs with Q0 = sigma_s r and G = 0 (no face terms).
+    // Q0 = sigma_s R0 (+ dJ/h on high mirror faces), G = chi_1 sigma_s R1 / kappa_tr (physical
+    // kappa_tr: dsa.h); b = Assembler::rhs (h² Q0 and G's face terms, 0 in empty cells).
+    const bool with_current = r1 != nullptr && chi1_ != 0.0;
+    Field<double>& Q0 = dp_.Q0[0];
+    Field<double>& G = dp_.G[0];
+    for_each_cell(d_.local(), [&](int i, int j, int k) {
+        Q0(i, j, k) = p_.sigma_s(i, j, k) * r0(i, j, k) + (mirror_source ? (*mirror_source)(i, j, k) : 0.0);
+        const double kt = p_.kappa_tr(i, j, k);
+        const double s = with_current && kt > 0.0 ? chi1_ * p_.sigma_s(i, j, k) / kt : 0.0;
+        for (int c = 0; c < 3; ++c) G(i, j, k, c) = s != 0.0 ? s * (*r1)(i, j, k, c) : 0.0;
+    });
+    if (with_current) filter_current_source(G);
+    if (chi1_ != 0.0) exchange_halo(G, d_);  // ghosts too: a call without r1 must not see the last one's
     const size_t ncell = static_cast<size_t>(box_.cells());
-    const double h2 = p_.h * p_.h;
     std::vector<double> b(ncell);
     size_t n = 0;
-    for_each_cell(box_, [&](int i, int j, int k) {
-        const double extra = mirror_source ? (*mirror_source)(i, j, k) : 0.0;
-        b[n] = full_[n] ? h2 * (p_.sigma_s(i, j, k) * r(i, j, k) + extra) : 0.0;
-        ++n;
-    });
+    for_each_cell(box_, [&](int i, int j, int k) { b[n++] = assembler_->rhs(0, i, j, k); });
     const double b_norm = global_norm(b, d_.comm());
     if (b_norm == 0.0) return 0;
     std::vector<double> x(ncell, 0.0), rv;
@@ -149,6 +230,15 @@ int DiffusionSynthetic::solve(const Field<double>& r, const Field<double>* mirro
         if (full_[n]) delta_(i, j, k) = x[n];
         ++n;
     });
+    if (chi1_ != 0.0) {  // δF = G - D ∇δ: the assembly's flux 4π (G - D ∇U) of U = δ, over 4π
+        if (delta_halo_.owned().empty()) delta_halo_ = Field<double>(d_.local(), 1, 1, 0.0);
+        for_each_cell(d_.local(), [&](int i, int j, int k) { delta_halo_(i, j, k) = delta_(i, j, k); });
+        exchange_halo(delta_halo_, d_);
+        for_each_cell(box_, [&](int i, int j, int k) {
+            const Vec3 F = assembler_->flux(0, delta_halo_, i, j, k);
+            for (int c = 0; c < 3; ++c) current_(i, j, k, c) = F[c] / (4.0 * std::numbers::pi);
+        });
+    }
     return iterations;
 }
 

@@ -1,11 +1,30 @@
 // Diffusion synthetic acceleration (Alcouffe 1977; Adams & Larsen 2002 §4) on the diffusion
-// model's cell-centred hypre assembly (solvers/diffusion: Assembler, solve_with_hypre).
-// After a transport sweep has produced the fluence phi^{l+1/2} from phi^l, the error of the
-// isotropic part is estimated by the diffusion problem
-//   -∇·(D ∇δ) + sigma_a δ = sigma_s (phi^{l+1/2} - phi^l),   phi^{l+1} = phi^{l+1/2} + δ,
+// model's cell-centred hypre assembly (solvers/diffusion: Assembler, solve_with_hypre), with the
+// first moment corrected too (P1 synthetic acceleration).
+// A transport sweep has produced the fluence phi^{l+1/2} and flux F^{l+1/2} from phi^l, F^l; the
+// changes R0 = phi^{l+1/2} - phi^l and R1 = F^{l+1/2} - F^l are the scattering source the error
+// misses. Its P1 moments (zeroth and first moment of the transport equation for the error, HG
+// first moment chi_1) are
+//   ∇·δF + sigma_a δ = sigma_s R0,     δF = (chi_1 sigma_s R1 - ∇δ/3) / kappa_tr,
+// i.e. the diffusion problem with a divergence source (the assembly's G = Q1/kappa_tr):
+//   -∇·(D ∇δ) + sigma_a δ = sigma_s R0 - ∇·G,   G = chi_1 sigma_s R1 / kappa_tr,
+//   phi^{l+1} = phi^{l+1/2} + δ,   F^{l+1} = F^{l+1/2} + G - D ∇δ,
 // with the Marshak condition (homogeneous: the error has no incoming light) at empty cells and
 // the domain boundary, and zero net current on specularly reflective domain faces (a mirror
-// returns all that leaves: n·F = 0). A low mirror face returns the same sweep's light; a high
+// returns all that leaves: n·F = 0). Correcting only the isotropic part (G = 0, F unchanged),
+// as plain DSA does, leaves the first moment to source iteration, whose error decays like
+// a chi_1 per sweep and flips sign for chi_1 < 0. But the P1 current equation has no damping of
+// the current's source at short wavelengths (the l = 2 moment that would give it is dropped): a
+// transverse current error that the sweep's streaming has already removed is put back, times
+// chi_1 sigma_s / kappa_tr (2.0 at g = 0.85, P3 delta-M), and the iteration diverged on the
+// dense cube. So G is FILTERED first, G <- (kappa_tr - ∇·nu∇)^{-1} kappa_tr G with
+// nu = 0.2 / kappa* (a fifth of a mean free path; one PFMG cycle per component, Marshak at the
+// medium's faces): long
+// waves, where P1 holds, keep their current correction, waves shorter than a mean free path lose
+// it. Spectral radius in a Fourier analysis of the infinite medium (jobs/dsa_fourier.py: albedo
+// 0.99, S16 x 32 product quadrature, delta-M P3): g = 0.85 plain DSA 0.72, with G 2.03, with G
+// filtered 0.47; g = -0.5: 1.11 (divergent), 0.35, 0.33; g = -0.9: 1.76, 0.80, 0.80.
+// A low mirror face returns the same sweep's light; a high
 // one the previous sweep's (transport_sweep.h), so there the error's net inward current is the
 // change dJ of the sweep's outgoing current (e_in = R(e_out + psi_out^new - psi_out^old)):
 // correct() takes it as a boundary source, b += h dJ per boundary cell. Without it (GMRES's
@@ -17,10 +36,12 @@
 // cells it dominates (the step scheme's diffusion limit) and with it the Marshak face flux
 // 2D/(4D + h) phi_P tends to phi_P/4, exactly the step scheme's outflow of an isotropic cell;
 // without it DSA diverged on the tau-100 cube (6.25 mean free paths per cell: change ~1.2 per
-// iteration), with it the cube converges in the test's bound (tests/verification/dom).
+// iteration), with it the cube converges in the test's bound (tests/verification/dom). It is
+// numerical diffusion of the streaming term, not of the collisions: G keeps the physical
+// kappa_tr.
 //
-// The same solve is the preconditioner of GMRES (gmres.h): solve() takes any fluence change r
-// and returns δ = A^{-1} sigma_s r, the correction of the last call.
+// The same solve is the preconditioner of GMRES (gmres.h): solve() takes any fluence and flux
+// change (R0, R1) and returns δ and δF, the corrections of the last call.
 //
 // Collective over d.comm(). The operator does not change between iterations (only the
 // right-hand side does): the hypre grid, matrix and PFMG-PCG setup are built ONCE in the
@@ -52,29 +73,41 @@ public:
     ~DiffusionSynthetic();
     DiffusionSynthetic(const DiffusionSynthetic&) = delete;
     DiffusionSynthetic& operator=(const DiffusionSynthetic&) = delete;
-    // Collective. Adds δ to fluence (owned cells). Returns the linear solver's iterations (0
+    // Collective. Adds δ to fluence and δF to flux (owned cells) for the sweep's changes
+    // R0 = fluence - fluence_old, R1 = flux - flux_old. Returns the linear solver's iterations (0
     // when the right-hand side vanishes everywhere). Throws Error (on every rank) when the
     // true relative residual stays above the tolerance.
     // mirror_source: dJ / h per boundary cell of the high mirror faces (TransportSweeper::
     // for_each_lagged_mirror_change), owned cells, or null.
-    int correct(const Field<double>& fluence_old, Field<double>& fluence,
-                const Field<double>* mirror_source = nullptr);
-    // Collective. δ = A^{-1} sigma_s r for a fluence change r (W/m², owned cells, 1 component),
-    // into last_correction(). Same return value and errors as correct(). A linear map of r up to
-    // the solver tolerance (PCG from a zero initial guess).
-    int solve(const Field<double>& r, const Field<double>* mirror_source = nullptr);
-    // The correction of the last call (owned cells, W/m²).
+    int correct(const Field<double>& fluence_old, const Field<double>& flux_old, Field<double>& fluence,
+                Field<double>& flux, const Field<double>* mirror_source = nullptr);
+    // Collective. δ and δF for a fluence change r0 (W/m², owned cells, 1 component) and a flux
+    // change r1 (3 components, or null: R1 = 0), into last_correction() and
+    // last_current_correction(). Same return value and errors as correct(). A linear map of
+    // (r0, r1) up to the solver tolerance (PCG from a zero initial guess).
+    int solve(const Field<double>& r0, const Field<double>* r1, const Field<double>* mirror_source = nullptr);
+    // The corrections of the last call (owned cells, W/m²): δ, and δF (3 components; zero when the
+    // phase function has no first moment, chi_1 = 0, which the sweep's source would not read).
     const Field<double>& last_correction() const { return delta_; }
+    const Field<double>& last_current_correction() const { return current_; }
 
 private:
+    void set_up_current_filter(const Int3& period);  // collective
+    void filter_current_source(Field<double>& G);     // collective
+    // The current's source is filtered (above) with width nu = kCurrentFilterWidth / kappa*.
+    static constexpr double kCurrentFilterWidth = 0.2;
     const Decomposition& d_;
     const BandProblem& p_;
     diffusion::DiffusionProblem dp_;
     diffusion::SolveRegion region_;
     DiffusionOptions opt_;
     double kappa_floor_ = 0.0;
+    double chi1_ = 0.0;      // the first Legendre moment of the (scaled) phase function
     Field<double> delta_;
-    Field<double> change_;  // correct()'s fluence change, kept to avoid an allocation per call
+    Field<double> delta_halo_;  // δ with its ghost layer, for the current's face differences
+    Field<double> current_;  // δF, 3 components
+    Field<double> change_, flux_change_;  // correct()'s R0 and R1, kept to avoid allocations per call
+    std::unique_ptr<diffusion::Assembler> assembler_;
     // The hypre system on d.local() ∩ region (set up once; null when the region is empty).
     Box box_;
     std::vector<char> full_;  // per cell of box_, x fastest
@@ -83,6 +116,9 @@ private:
     std::unique_ptr<diffusion::hypre::Matrix> A_;
     std::unique_ptr<diffusion::hypre::Vector> b_, x_, r_;
     std::unique_ptr<diffusion::hypre::Solver> solver_;
+    diffusion::DiffusionProblem fp_;  // the current filter's problem (chi_1 != 0)
+    std::unique_ptr<diffusion::hypre::Matrix> filter_A_;
+    std::unique_ptr<diffusion::hypre::Solver> filter_;
 };
 
 }  // namespace nimbus::dom

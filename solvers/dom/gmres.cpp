@@ -77,7 +77,7 @@ struct KrylovContext {
     DiffusionSynthetic* dsa = nullptr;  // null: no preconditioner
     Report* report = nullptr;
     const std::string* sweep_failure = nullptr;  // ShellContext::failure
-    Field<double> r0;                   // fluence change handed to the DSA solve
+    Field<double> r0, r1;               // fluence and flux change handed to the DSA solve
     int dsa_iterations = 0;
     std::string failure;  // a DSA solve's error: reported by the convergence test, rethrown after
     double tolerance = 0;
@@ -87,32 +87,49 @@ struct KrylovContext {
     std::vector<double> history;  // ||P^{-1} r_k|| / ||phi_k||, k = 1, 2, ...
 };
 
-// y = P^{-1} x = x + e_0 A^{-1} sigma_s x_0 (gmres.h). Fluence = sqrt(4π) x_0 on the way in, the
-// correction returns to the Y_00 moment times Y_00 = 1/sqrt(4π).
+// y = P^{-1} x = x + e_0 δ + e_1 δF, the DSA corrections (dsa.h) of the fluence change
+// R0 = sqrt(4π) x_0 and the flux change R1 = sqrt(4π/3) (x_3, x_1, x_2) (Y_00 = 1/sqrt(4π),
+// Y_1m = sqrt(3/4π) (Ω_y, Ω_z, Ω_x)); the corrections return to the moments times Y.
 PetscErrorCode dsa_apply(PC pc, Vec x, Vec y) {
     KrylovContext* c = nullptr;
     PetscCall(PCShellGetContext(pc, &c));
     PetscCall(VecCopy(x, y));
     if (!c->failure.empty()) return 0;
-    const double sqrt4pi = std::sqrt(4.0 * std::acos(-1.0));
+    const double sqrt4pi = std::sqrt(4.0 * std::acos(-1.0)), y1 = std::sqrt(3.0) / sqrt4pi;
     const int nmom = c->nmom;
+    const bool first_moments = nmom >= 4;
     const PetscScalar* xv = nullptr;
     PetscCall(VecGetArrayRead(x, &xv));
     double* r0 = c->r0.data();
+    double* r1 = c->r1.data();
     const size_t ncell = static_cast<size_t>(c->own->cells());
-    for (size_t q = 0; q < ncell; ++q) r0[q] = sqrt4pi * xv[q * nmom];
+    for (size_t q = 0; q < ncell; ++q) {
+        r0[q] = sqrt4pi * xv[q * nmom];
+        if (!first_moments) continue;
+        r1[3 * q + 0] = xv[q * nmom + 3] / y1;
+        r1[3 * q + 1] = xv[q * nmom + 1] / y1;
+        r1[3 * q + 2] = xv[q * nmom + 2] / y1;
+    }
     PetscCall(VecRestoreArrayRead(x, &xv));
     try {
         ScopedTimer t(*c->report, "dsa_solve");
-        c->dsa_iterations += c->dsa->solve(c->r0);
+        c->dsa_iterations += c->dsa->solve(c->r0, first_moments ? &c->r1 : nullptr);
     } catch (const Error& e) {  // collective: every rank fails together (dsa.h)
         c->failure = e.what();
         return 0;
     }
     const double* delta = c->dsa->last_correction().data();
+    const Field<double>& current = c->dsa->last_current_correction();
+    const double* dF = current.data();
     PetscScalar* yv = nullptr;
     PetscCall(VecGetArray(y, &yv));
-    for (size_t q = 0; q < ncell; ++q) yv[q * nmom] += delta[q] / sqrt4pi;
+    for (size_t q = 0; q < ncell; ++q) {
+        yv[q * nmom] += delta[q] / sqrt4pi;
+        if (!first_moments) continue;
+        yv[q * nmom + 1] += y1 * dF[3 * q + 1];
+        yv[q * nmom + 2] += y1 * dF[3 * q + 2];
+        yv[q * nmom + 3] += y1 * dF[3 * q + 0];
+    }
     PetscCall(VecRestoreArray(y, &yv));
     return 0;
 }
@@ -214,6 +231,7 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
         dsa = std::make_unique<DiffusionSynthetic>(d, p, std::min(1e-4, 1e-2 * tolerance), sweeper.boundary().reflective);
         kc.dsa = dsa.get();
         kc.r0 = Field<double>(own, 0, 1, 0.0);
+        kc.r1 = Field<double>(own, 0, 3, 0.0);
     }
     PC pc = nullptr;
     check(KSPGetPC(ksp, &pc), "KSPGetPC");

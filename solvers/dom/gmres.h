@@ -6,9 +6,10 @@
 //
 // Preconditioner (GmresPreconditioner::dsa, the default): DSA (dsa.h) as a left PCShell.
 // One DSA step x' = x + (I + C)(b - (I - K) x) is a Richardson step on
-//   P^{-1} (I - K) phi = P^{-1} b,   P^{-1} r = r + e_0 A^{-1} sigma_s r_0,
-// where r_0 is the Y_00 moment of r and A the diffusion operator of dsa.h (moment and fluence
-// units differ by the constant Y_00, which cancels in the linear map). GMRES on this system
+//   P^{-1} (I - K) phi = P^{-1} b,   P^{-1} r = r + e_0 δ(r_0, r_1) + e_1 δF(r_0, r_1)
+// where δ and δF are DSA's corrections (dsa.h) of the fluence change r_0 and the flux change r_1,
+// read from the Y_00 and Y_1m moments of r (constant factors between moment and fluence units,
+// undone on the way back; the map is linear: the current's filter is a fixed PFMG cycle). GMRES on this system
 // converges in a handful of iterations where source iteration needs thousands (thick cube,
 // tests/verification/dom/iteration_test.cpp). The DSA solve inside the preconditioner is run to
 // min(1e-4, 1e-2 tolerance) so that P^{-1} is linear to well below the outer tolerance.

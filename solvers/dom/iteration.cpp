@@ -72,8 +72,9 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
         dsa = std::make_unique<DiffusionSynthetic>(d, p, 1e-4, sweeper.boundary().reflective, true);
     }
     const double y00 = 1.0 / std::sqrt(4.0 * std::acos(-1.0));
+    const double y1 = std::sqrt(3.0) * y00;  // Y_1m = sqrt(3/4π) (Ω_y, Ω_z, Ω_x), m = -1, 0, 1
     Field<double> phi(own, 0, ang.nmom, 0.0), s(own, 0, ang.nmom, 0.0);
-    Field<double> fluence_old(own, 0, 1, 0.0);
+    Field<double> fluence_old(own, 0, 1, 0.0), flux_old(own, 0, 3, 0.0);
     Field<double> mirror_source(own, 0, 1, 0.0);  // DSA's boundary source on high mirror faces
     SweepSource src;
     src.kappa = &p.kappa;
@@ -94,9 +95,17 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
             mirror_source.fill(0.0);
             sweeper.for_each_lagged_mirror_change(
                 [&](int i, int j, int k, double dJ) { mirror_source(i, j, k) += dJ / p.h; });
-            res.dsa_linear_iterations += dsa->correct(fluence_old, out.fluence, &mirror_source);
+            res.dsa_linear_iterations += dsa->correct(fluence_old, flux_old, out.fluence, out.flux, &mirror_source);
             const auto& delta = dsa->last_correction();
-            for_each_cell(own, [&](int i, int j, int k) { out.phi(i, j, k, 0) += y00 * delta(i, j, k); });
+            const auto& current = dsa->last_current_correction();
+            const bool first_moments = ang.nmom >= 4;
+            for_each_cell(own, [&](int i, int j, int k) {
+                out.phi(i, j, k, 0) += y00 * delta(i, j, k);
+                if (!first_moments) return;
+                out.phi(i, j, k, 1) += y1 * current(i, j, k, 1);
+                out.phi(i, j, k, 2) += y1 * current(i, j, k, 2);
+                out.phi(i, j, k, 3) += y1 * current(i, j, k, 0);
+            });
         }
         double sums[2] = {0.0, 0.0};
         for_each_cell(own, [&](int i, int j, int k) {
@@ -112,6 +121,7 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
                    dsa ? fmt::format(" (DSA: {} PFMG-PCG iterations so far)", res.dsa_linear_iterations) : "");
         std::swap(phi, out.phi);  // phi: the current iterate, feeds the next source
         fluence_old = out.fluence;
+        flux_old = out.flux;
         if (change <= tolerance) {
             res.converged = true;
             break;
