@@ -95,14 +95,14 @@ DiffusionSynthetic::DiffusionSynthetic(const Decomposition& d, const BandProblem
     solver_->set_max_iterations(opt_.max_iterations);  // the largest limit, before setup
     solver_->set_tolerance(opt_.tolerance);
     solver_->setup(*A_, *b_, *x_);
-    if (chi1_ != 0.0) set_up_current_filter(period);
+    period_ = period;  // the current's filter is set up at its first use (set_up_current_filter)
 }
 
 // The filter of the current's source (dsa.h): -∇·(nu ∇u) + kappa_tr u = kappa_tr G per
 // component, nu = kCurrentFilterWidth / kappa*, as a diffusion problem (D = nu: kappa_tr of the
 // assembly kappa* / (3 kCurrentFilterWidth)), Marshak at empty cells and the domain boundary, no
 // flux through mirror faces; one PFMG V-cycle from zero (hypre::Solver "pfmg-cycle"), a linear map.
-void DiffusionSynthetic::set_up_current_filter(const Int3& period) {
+void DiffusionSynthetic::set_up_current_filter() {
     namespace hy = diffusion::hypre;
     const Box& own = d_.local();
     fp_.h = dp_.h;
@@ -119,7 +119,7 @@ void DiffusionSynthetic::set_up_current_filter(const Int3& period) {
     exchange_halo(fp_.kappa_tr, d_);
     const diffusion::Assembler assembler(fp_, kappa_floor_);
     filter_A_ = assemble_matrix(d_.comm(), assembler, box_, *grid_, *stencil_);
-    filter_ = std::make_unique<hy::Solver>(d_.comm(), "pfmg-cycle", period[0] + period[1] + period[2] > 0);
+    filter_ = std::make_unique<hy::Solver>(d_.comm(), "pfmg-cycle", period_[0] + period_[1] + period_[2] > 0);
     filter_->setup(*filter_A_, *b_, *x_);
 }
 
@@ -151,7 +151,8 @@ void DiffusionSynthetic::filter_current_source(Field<double>& G) {
 DiffusionSynthetic::~DiffusionSynthetic() = default;
 
 int DiffusionSynthetic::correct(const Field<double>& fluence_old, const Field<double>& flux_old,
-                                Field<double>& fluence, Field<double>& flux, const Field<double>* mirror_source) {
+                                Field<double>& fluence, Field<double>& flux, bool with_current,
+                                const Field<double>* mirror_source) {
     const Box& own = d_.local();
     if (change_.owned().empty()) {
         change_ = Field<double>(own, 0, 1, 0.0);
@@ -161,7 +162,7 @@ int DiffusionSynthetic::correct(const Field<double>& fluence_old, const Field<do
         change_(i, j, k) = fluence(i, j, k) - fluence_old(i, j, k);
         for (int c = 0; c < 3; ++c) flux_change_(i, j, k, c) = flux(i, j, k, c) - flux_old(i, j, k, c);
     });
-    const int iterations = solve(change_, &flux_change_, mirror_source);
+    const int iterations = solve(change_, with_current ? &flux_change_ : nullptr, mirror_source);
     for_each_cell(own, [&](int i, int j, int k) {
         fluence(i, j, k) += delta_(i, j, k);
         for (int c = 0; c < 3; ++c) flux(i, j, k, c) += current_(i, j, k, c);
@@ -174,22 +175,33 @@ int DiffusionSynthetic::solve(const Field<double>& r0, const Field<double>* r1, 
     current_.fill(0.0);
     if (!solver_) return 0;
     // Q0 = sigma_s R0 (+ dJ/h on high mirror faces), G = chi_1 sigma_s R1 / kappa_tr (physical
-    // kappa_tr: dsa.h); b = Assembler::rhs (h² Q0 and G's face terms, 0 in empty cells).
+    // kappa_tr: dsa.h), filtered; b = Assembler::rhs (h² Q0 and G's face terms, 0 in empty
+    // cells). Without the current: b = h² Q0 in full cells.
     const bool with_current = r1 != nullptr && chi1_ != 0.0;
-    Field<double>& Q0 = dp_.Q0[0];
-    Field<double>& G = dp_.G[0];
-    for_each_cell(d_.local(), [&](int i, int j, int k) {
-        Q0(i, j, k) = p_.sigma_s(i, j, k) * r0(i, j, k) + (mirror_source ? (*mirror_source)(i, j, k) : 0.0);
-        const double kt = p_.kappa_tr(i, j, k);
-        const double s = with_current && kt > 0.0 ? chi1_ * p_.sigma_s(i, j, k) / kt : 0.0;
-        for (int c = 0; c < 3; ++c) G(i, j, k, c) = s != 0.0 ? s * (*r1)(i, j, k, c) : 0.0;
-    });
-    if (with_current) filter_current_source(G);
-    if (chi1_ != 0.0) exchange_halo(G, d_);  // ghosts too: a call without r1 must not see the last one's
     const size_t ncell = static_cast<size_t>(box_.cells());
     std::vector<double> b(ncell);
     size_t n = 0;
-    for_each_cell(box_, [&](int i, int j, int k) { b[n++] = assembler_->rhs(0, i, j, k); });
+    if (with_current) {
+        Field<double>& Q0 = dp_.Q0[0];
+        Field<double>& G = dp_.G[0];
+        for_each_cell(d_.local(), [&](int i, int j, int k) {
+            Q0(i, j, k) = p_.sigma_s(i, j, k) * r0(i, j, k) + (mirror_source ? (*mirror_source)(i, j, k) : 0.0);
+            const double kt = p_.kappa_tr(i, j, k);
+            const double s = kt > 0.0 ? chi1_ * p_.sigma_s(i, j, k) / kt : 0.0;
+            for (int c = 0; c < 3; ++c) G(i, j, k, c) = s * (*r1)(i, j, k, c);
+        });
+        if (!filter_) set_up_current_filter();  // collective: every rank passes r1 or none
+        filter_current_source(G);
+        exchange_halo(G, d_);
+        for_each_cell(box_, [&](int i, int j, int k) { b[n++] = assembler_->rhs(0, i, j, k); });
+    } else {
+        const double h2 = p_.h * p_.h;
+        for_each_cell(box_, [&](int i, int j, int k) {
+            const double extra = mirror_source ? (*mirror_source)(i, j, k) : 0.0;
+            b[n] = full_[n] ? h2 * (p_.sigma_s(i, j, k) * r0(i, j, k) + extra) : 0.0;
+            ++n;
+        });
+    }
     const double b_norm = global_norm(b, d_.comm());
     if (b_norm == 0.0) return 0;
     std::vector<double> x(ncell, 0.0), rv;
@@ -230,7 +242,7 @@ int DiffusionSynthetic::solve(const Field<double>& r0, const Field<double>* r1, 
         if (full_[n]) delta_(i, j, k) = x[n];
         ++n;
     });
-    if (chi1_ != 0.0) {  // δF = G - D ∇δ: the assembly's flux 4π (G - D ∇U) of U = δ, over 4π
+    if (with_current) {  // δF = G - D ∇δ: the assembly's flux 4π (G - D ∇U) of U = δ, over 4π
         if (delta_halo_.owned().empty()) delta_halo_ = Field<double>(d_.local(), 1, 1, 0.0);
         for_each_cell(d_.local(), [&](int i, int j, int k) { delta_halo_(i, j, k) = delta_(i, j, k); });
         exchange_halo(delta_halo_, d_);

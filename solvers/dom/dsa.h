@@ -74,25 +74,26 @@ public:
     DiffusionSynthetic(const DiffusionSynthetic&) = delete;
     DiffusionSynthetic& operator=(const DiffusionSynthetic&) = delete;
     // Collective. Adds δ to fluence and δF to flux (owned cells) for the sweep's changes
-    // R0 = fluence - fluence_old, R1 = flux - flux_old. Returns the linear solver's iterations (0
+    // R0 = fluence - fluence_old, R1 = flux - flux_old; with_current false: the isotropic
+    // correction alone (δF = 0, the cost of plain DSA). Returns the linear solver's iterations (0
     // when the right-hand side vanishes everywhere). Throws Error (on every rank) when the
     // true relative residual stays above the tolerance.
     // mirror_source: dJ / h per boundary cell of the high mirror faces (TransportSweeper::
     // for_each_lagged_mirror_change), owned cells, or null.
     int correct(const Field<double>& fluence_old, const Field<double>& flux_old, Field<double>& fluence,
-                Field<double>& flux, const Field<double>* mirror_source = nullptr);
+                Field<double>& flux, bool with_current, const Field<double>* mirror_source = nullptr);
     // Collective. δ and δF for a fluence change r0 (W/m², owned cells, 1 component) and a flux
-    // change r1 (3 components, or null: R1 = 0), into last_correction() and
+    // change r1 (3 components, or null: the isotropic correction alone, δF = 0), into last_correction() and
     // last_current_correction(). Same return value and errors as correct(). A linear map of
     // (r0, r1) up to the solver tolerance (PCG from a zero initial guess).
     int solve(const Field<double>& r0, const Field<double>* r1, const Field<double>* mirror_source = nullptr);
-    // The corrections of the last call (owned cells, W/m²): δ, and δF (3 components; zero when the
-    // phase function has no first moment, chi_1 = 0, which the sweep's source would not read).
+    // The corrections of the last call (owned cells, W/m²): δ, and δF (3 components; zero without
+    // r1 or when the phase function has no first moment, chi_1 = 0, which the sweep would not read).
     const Field<double>& last_correction() const { return delta_; }
     const Field<double>& last_current_correction() const { return current_; }
 
 private:
-    void set_up_current_filter(const Int3& period);  // collective
+    void set_up_current_filter();                    // collective
     void filter_current_source(Field<double>& G);     // collective
     // The current's source is filtered (above) with width nu = kCurrentFilterWidth / kappa*.
     static constexpr double kCurrentFilterWidth = 0.2;
@@ -116,7 +117,8 @@ private:
     std::unique_ptr<diffusion::hypre::Matrix> A_;
     std::unique_ptr<diffusion::hypre::Vector> b_, x_, r_;
     std::unique_ptr<diffusion::hypre::Solver> solver_;
-    diffusion::DiffusionProblem fp_;  // the current filter's problem (chi_1 != 0)
+    Int3 period_{0, 0, 0};            // the hypre grid's periods
+    diffusion::DiffusionProblem fp_;  // the current filter's problem (set up at its first use)
     std::unique_ptr<diffusion::hypre::Matrix> filter_A_;
     std::unique_ptr<diffusion::hypre::Solver> filter_;
 };
