@@ -192,7 +192,7 @@ TEST(DomIteration, StallDetection) {
 
 // DSA corrects the current as well as the isotropic error (dsa.h). Here (16³ cube, tau 20,
 // albedo 0.99, S4, P3, tolerance 1e-6: scenes/dense_cube.toml's optics at g = 0.85, -0.5, -0.9)
-// DSA takes 15, 10 and 35 iterations and DSA-preconditioned GMRES 8, 7 and 18. With the
+// DSA takes 14, 11 and 35 iterations and DSA-preconditioned GMRES 8, 7 and 18. With the
 // isotropic correction alone (the current's source and update dropped, as before the
 // twenty-sixth session) DSA took 23 and 37 and stalled at g = -0.9 (40 iterations, the change
 // settling near 1.8), GMRES 13, 9 and 19.
