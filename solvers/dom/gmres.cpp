@@ -13,6 +13,7 @@
 #include "solvers/diffusion/petsc_support.h"
 #include "solvers/dom/dsa.h"
 #include "src/core/error.h"
+#include "src/physics/angular_moments.h"
 
 namespace nimbus::dom {
 namespace {
@@ -89,13 +90,14 @@ struct KrylovContext {
 
 // y = P^{-1} x = x + e_0 δ + e_1 δF, the DSA corrections (dsa.h) of the fluence change
 // R0 = sqrt(4π) x_0 and the flux change R1 = sqrt(4π/3) (x_3, x_1, x_2) (Y_00 = 1/sqrt(4π),
-// Y_1m = sqrt(3/4π) (Ω_y, Ω_z, Ω_x)); the corrections return to the moments times Y.
+// first_moment_axis and first_moment_scale in angular_moments.h); the corrections return to the
+// moments times Y.
 PetscErrorCode dsa_apply(PC pc, Vec x, Vec y) {
     KrylovContext* c = nullptr;
     PetscCall(PCShellGetContext(pc, &c));
     PetscCall(VecCopy(x, y));
     if (!c->failure.empty()) return 0;
-    const double sqrt4pi = std::sqrt(4.0 * std::acos(-1.0)), y1 = std::sqrt(3.0) / sqrt4pi;
+    const double sqrt4pi = std::sqrt(4.0 * std::acos(-1.0)), y1 = first_moment_scale();
     const int nmom = c->nmom;
     const bool first_moments = nmom >= 4;
     const PetscScalar* xv = nullptr;
@@ -106,9 +108,7 @@ PetscErrorCode dsa_apply(PC pc, Vec x, Vec y) {
     for (size_t q = 0; q < ncell; ++q) {
         r0[q] = sqrt4pi * xv[q * nmom];
         if (!first_moments) continue;
-        r1[3 * q + 0] = xv[q * nmom + 3] / y1;
-        r1[3 * q + 1] = xv[q * nmom + 1] / y1;
-        r1[3 * q + 2] = xv[q * nmom + 2] / y1;
+        for (int m = 1; m <= 3; ++m) r1[3 * q + first_moment_axis(m)] = xv[q * nmom + m] / y1;
     }
     PetscCall(VecRestoreArrayRead(x, &xv));
     try {
@@ -126,9 +126,7 @@ PetscErrorCode dsa_apply(PC pc, Vec x, Vec y) {
     for (size_t q = 0; q < ncell; ++q) {
         yv[q * nmom] += delta[q] / sqrt4pi;
         if (!first_moments) continue;
-        yv[q * nmom + 1] += y1 * dF[3 * q + 1];
-        yv[q * nmom + 2] += y1 * dF[3 * q + 2];
-        yv[q * nmom + 3] += y1 * dF[3 * q + 0];
+        for (int m = 1; m <= 3; ++m) yv[q * nmom + m] += y1 * dF[3 * q + first_moment_axis(m)];
     }
     PetscCall(VecRestoreArray(y, &yv));
     return 0;

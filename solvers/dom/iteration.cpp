@@ -9,6 +9,7 @@
 #include "solvers/dom/dsa.h"
 #include "solvers/dom/gmres.h"
 #include "src/core/log.h"
+#include "src/physics/angular_moments.h"
 
 namespace nimbus::dom {
 namespace {
@@ -77,7 +78,7 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
         dsa = std::make_unique<DiffusionSynthetic>(d, p, 1e-4, sweeper.boundary().reflective, true);
     }
     const double y00 = 1.0 / std::sqrt(4.0 * std::acos(-1.0));
-    const double y1 = std::sqrt(3.0) * y00;  // Y_1m = sqrt(3/4π) (Ω_y, Ω_z, Ω_x), m = -1, 0, 1
+    const double y1 = first_moment_scale();
     Field<double> phi(own, 0, ang.nmom, 0.0), s(own, 0, ang.nmom, 0.0);
     Field<double> fluence_old(own, 0, 1, 0.0), flux_old(own, 0, 3, 0.0);
     Field<double> mirror_source(own, 0, 1, 0.0);  // DSA's boundary source on high mirror faces
@@ -109,9 +110,7 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
             for_each_cell(own, [&](int i, int j, int k) {
                 out.phi(i, j, k, 0) += y00 * delta(i, j, k);
                 if (!first_moments) return;
-                out.phi(i, j, k, 1) += y1 * current(i, j, k, 1);
-                out.phi(i, j, k, 2) += y1 * current(i, j, k, 2);
-                out.phi(i, j, k, 3) += y1 * current(i, j, k, 0);
+                for (int m = 1; m <= 3; ++m) out.phi(i, j, k, m) += y1 * current(i, j, k, first_moment_axis(m));
             });
         }
         double sums[2] = {0.0, 0.0};

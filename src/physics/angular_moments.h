@@ -21,6 +21,8 @@
 //   S(Ω_n) = Σ_n' w_n' p_L(Ω_n·Ω_n') psi_n' ≈ ∫ p(Ω_n·Ω') psi(Ω') dΩ'.
 #pragma once
 
+#include <cmath>
+#include <numbers>
 #include <vector>
 
 #include "src/core/vec3.h"
@@ -47,6 +49,12 @@ void legendre_polynomials(int L, double mu, std::vector<double>& P);
 
 // Real orthonormal spherical harmonics Y_k(Ω), k = 0..(L+1)²-1, of a unit direction into Y.
 void real_spherical_harmonics(int L, const Vec3& dir, std::vector<double>& Y);
+
+// The l = 1 harmonics are the current's components: Y_k = sqrt(3/4π) Ω_{axis(k)} for k = 1, 2, 3
+// with axis y, z, x (m = -1, 0, 1 above), so a field with current F has the moments
+// phi_k = sqrt(3/4π) F_{first_moment_axis(k)}. DSA's current correction maps through this.
+constexpr int first_moment_axis(int k) { return k % 3; }  // k = 1, 2, 3 -> 1 (y), 2 (z), 0 (x)
+inline double first_moment_scale() { return std::sqrt(0.75 / std::numbers::pi); }
 
 // Scattering by moments with REAL orthonormal spherical harmonics Y_m, m = (l, m') flattened,
 // (L+1)^2 moments: phi_m = Σ_n w_n Y_m(Ω_n) psi_n (discrete-to-moment),

@@ -104,6 +104,18 @@ TEST(RealSphericalHarmonics, ClosedFormsWithoutCondonShortleyPhase) {
     }
 }
 
+// DSA maps the l = 1 moments to the current's components and back through these two.
+TEST(RealSphericalHarmonics, FirstMomentsAreTheCurrentsComponents) {
+    std::mt19937_64 rng(5);
+    for (int t = 0; t < 20; ++t) {
+        const Vec3 d = random_direction(rng);
+        std::vector<double> Y;
+        real_spherical_harmonics(1, d, Y);
+        for (int k = 1; k <= 3; ++k)
+            EXPECT_NEAR(Y[k], first_moment_scale() * d[first_moment_axis(k)], 1e-15) << "k " << k;
+    }
+}
+
 TEST(RealSphericalHarmonics, OrthonormalOnFineProductQuadrature) {
     const int L = 12;
     const Quadrature q = product_quadrature(16, 32);  // exact for degree <= 24 < 2·16, m < 32
