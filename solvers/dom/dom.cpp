@@ -103,6 +103,106 @@ private:
     DomOptions opt_;
 };
 
+// Boundaries: the reflective faces, and the sky as incoming radiance (then not a first-collision term).
+dom::SweepBoundary sweep_boundary(const DomOptions& opt, const Scene& scene) {
+    dom::SweepBoundary bc;
+    for (const std::string& f : opt.reflective)
+        bc.reflective[static_cast<size_t>(2 * (f[0] - 'x') + (f[1] == '+' ? 1 : 0))] = true;
+    bc.sky = opt.sky == "boundary" && !scene.sky.radiance.empty();
+    return bc;
+}
+
+// Emission q = Σ_t weight[nl + t] power_t / 4π of the volume sources, for one right-hand side.
+void set_emission(dom::BandProblem& p, const std::vector<VolumeSource>& sources, const Field<double>& rho,
+                  const std::vector<double>& weight, size_t nl) {
+    if (sources.empty()) return;
+    for_each_cell(p.emission.owned(), [&](int i, int j, int k) {
+        const double e =
+            emitted_power_at(sources, rho, [&](size_t t) { return weight[nl + t]; }, i, j, k, {i, j, k});
+        p.emission(i, j, k) = e / (4.0 * std::acos(-1.0));
+    });
+}
+
+// A solve that did not converge is an error on every rank, with its history and what to try.
+[[noreturn]] void throw_not_converged(const DomOptions& opt, const dom::IterationResult& res,
+                                      const std::string& for_bands) {
+    if (res.stalled)
+        throw Error(fmt::format("dom: the solve of {} diverges with iteration = \"{}\": the relative change has "
+                                "stayed above {:g} times its lowest value for {} iterations ({}); use "
+                                "model.dom.iteration = \"gmres\" (DSA-preconditioned GMRES)",
+                                for_bands, opt.iteration, dom::kStallGrowth, dom::kStallWindow,
+                                dom::format_history(res.history)));
+    throw Error(fmt::format("dom: the solve of {} did not converge in {} {} iterations (tolerance {:.1e}); "
+                            "relative change: {}; raise model.dom.max_iterations or use "
+                            "model.dom.iteration = \"gmres\"", for_bands, res.iterations, opt.iteration,
+                            opt.tolerance, dom::format_history(res.history)));
+}
+
+// Energy balance of the scaled problem into the solve's report entry: emitted + first-collision
+// = absorbed + net leakage (light that came in through the faces, the sky as boundary radiance or
+// a mirror, counts against it), relative to the external power: the sources and the sky's
+// incoming light. Collective.
+void record_energy_balance(const Decomposition& d, double cell_volume, const dom::BandProblem& p,
+                           const dom::SweepOutput& sw, nlohmann::json& entry) {
+    double e[2] = {0.0, 0.0};
+    for_each_cell(d.local(), [&](int i, int j, int k) {
+        double src = 4.0 * std::acos(-1.0) * p.emission(i, j, k);
+        for (int l = 0; l < p.nl; ++l) src += p.amp(i, j, k, l);
+        e[0] += cell_volume * src;
+        e[1] += cell_volume * p.sigma_a(i, j, k) * sw.fluence(i, j, k);
+    });
+    MPI_Allreduce(MPI_IN_PLACE, e, 2, MPI_DOUBLE, MPI_SUM, d.comm());
+    double leaked = 0.0;
+    for (double v : sw.leakage) leaked += v;
+    entry["source_power"] = e[0];
+    entry["sky_incoming_power"] = sw.sky_incoming;
+    entry["absorbed_power"] = e[1];
+    entry["leakage"] = sw.leakage;
+    const double power_in = e[0] + sw.sky_incoming;
+    entry["energy_balance"] = power_in > 0 ? (e[0] - e[1] - leaked) / power_in : 0.0;
+}
+
+// Each band that uses right-hand side r of the group adds that solution at its scale: the
+// iteration's fluence and flux plus the delta-M forward peak, less the uncollided sky (unc, when
+// the sky is boundary radiance and lit).
+void add_to_bands(const BandGroup& group, size_t r, const dom::BandProblem& p, const dom::SweepOutput& sw,
+                  const dom::SweepOutput* unc, DiffuseSolution& out) {
+    for_each_use(group, r, [&](int band, double scale) {
+        Field<double>& fl = out.fluence[static_cast<size_t>(band)];
+        Field<double>& fx = out.flux[static_cast<size_t>(band)];
+        for_each_cell(p.kappa.owned(), [&](int i, int j, int k) {
+            fl(i, j, k) += scale * (sw.fluence(i, j, k) + p.forward_fluence(i, j, k) - (unc ? unc->fluence(i, j, k) : 0.0));
+            for (int c = 0; c < 3; ++c)
+                fx(i, j, k, c) += scale * (sw.flux(i, j, k, c) + p.forward_flux(i, j, k, c) -
+                                           (unc ? unc->flux(i, j, k, c) : 0.0));
+        });
+    });
+}
+
+// Figures of merit into values()["dom"] (Kripke's grind time: time / (global unknowns x
+// iterations)), and the log line. Collective.
+void record_figures_of_merit(const Decomposition& d, const dom::TransportSweeper& sweeper,
+                             const dom::AngularSet& ang, double iter_seconds, double unknown_iterations,
+                             nlohmann::json& rec) {
+    const dom::SweepTiming& t = sweeper.timing();
+    double tm[2] = {t.sweep_seconds, t.wait_seconds};
+    double eff = t.sweep_seconds > 0 ? 1.0 - t.wait_seconds / t.sweep_seconds : 1.0;
+    MPI_Allreduce(MPI_IN_PLACE, tm, 2, MPI_DOUBLE, MPI_MAX, d.comm());
+    MPI_Allreduce(MPI_IN_PLACE, &eff, 1, MPI_DOUBLE, MPI_MIN, d.comm());
+    rec["grind_time_ns"] = unknown_iterations > 0 ? 1e9 * iter_seconds / unknown_iterations : 0.0;
+    rec["sweep_grind_time_ns"] = unknown_iterations > 0 ? 1e9 * tm[0] / unknown_iterations : 0.0;
+    rec["sweep_seconds"] = tm[0];
+    rec["pipeline_wait_seconds"] = tm[1];
+    rec["sweep_efficiency"] = eff;
+    rec["periodic_passes"] = t.periodic_passes;
+    std::int64_t fixups = t.fixups;  // diamond: cell-directions fixed up, all ranks
+    MPI_Allreduce(MPI_IN_PLACE, &fixups, 1, MPI_INT64_T, MPI_SUM, d.comm());
+    rec["fixups"] = fixups;
+    if (d.rank() == 0)
+        log::info("dom: {} on {}, grind time {:.2f} ns, sweep efficiency {:.2f}", ang.quadrature.name,
+                  d.describe(), rec["grind_time_ns"].get<double>(), eff);
+}
+
 void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
     ScopedTimer timer(ctx.report, "dom");
     const Decomposition& d = ctx.decomp;
@@ -111,23 +211,17 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
     sweep::SweepOptions sopt;
     sopt.tile_rows = opt_.tile_rows;
     sopt.octant_overlap = opt_.octant_overlap;
-    // Boundaries: reflective faces, and the sky as incoming radiance (then not a first-collision term).
-    dom::SweepBoundary bc;
-    for (const std::string& f : opt_.reflective)
-        bc.reflective[static_cast<size_t>(2 * (f[0] - 'x') + (f[1] == '+' ? 1 : 0))] = true;
-    bc.sky = opt_.sky == "boundary" && !ctx.scene.sky.radiance.empty();
+    const dom::SweepBoundary bc = sweep_boundary(opt_, ctx.scene);
     const LightTransport first_collision = bc.sky ? dom::without_sky(ctx.light) : LightTransport{};
     const LightTransport& lights = bc.sky ? first_collision : ctx.light;
     const dom::SpatialScheme scheme = opt_.scheme == "diamond" ? dom::SpatialScheme::diamond : dom::SpatialScheme::step;
     dom::TransportSweeper sweeper(d, ang, m.grid.h, sopt, 0.1 * opt_.tolerance, scheme, bc);
-    const Box& own = d.local();
-    const int ndir = ang.quadrature.size();
-    const double global_cells = static_cast<double>(d.global().cells());
     auto& rec = ctx.report.values()["dom"];
     rec["quadrature"] = ang.quadrature.name;
-    rec["directions"] = ndir;
+    rec["directions"] = ang.quadrature.size();
     rec["moments"] = ang.nmom;
-    double iter_seconds = 0, unknown_iterations = 0;
+    rec["scheme"] = opt_.scheme;
+    rec["state_bytes_per_cell"] = state_bytes_per_cell(ang, static_cast<int>(ctx.light.lights.size()));
     const std::vector<VolumeSource> sources = volume_sources(ctx.scene);  // [[sources]], q = power / 4π
     check_volume_sources(sources, m.rho, d);
     // Source terms (src/physics/band_groups.h): the first-collision lights, the volume sources
@@ -142,32 +236,27 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
         strength.push_back(std::move(L));
     }
     const std::vector<BandGroup> groups = group_bands(m.bands, strength);
+    const Box& own = d.local();
     out = DiffuseSolution{};
     for (int b = 0; b < m.nbands(); ++b) {
         out.fluence.emplace_back(own, 1, 1, 0.0);
         out.flux.emplace_back(own, 1, 3, 0.0);
     }
     rec["solves"] = nlohmann::json::array();
+    double iter_seconds = 0, unknown_iterations = 0;
     for (const BandGroup& group : groups)
         for (size_t r = 0; r < group.rhs_weights.size(); ++r) {
             const std::vector<double>& weight = group.rhs_weights[r];
             const std::vector<std::string> band_names = rhs_band_names(group, r, m.bands);
-            const std::string for_bands = fmt::format("{} {}", band_names.size() == 1 ? "band" : "bands",
-                                                      fmt::join(band_names, ", "));
             nlohmann::json entry = {{"bands", band_names},
                                     {"terms", term_names(weight, lights.lights, sources.size())}};
             dom::BandProblem p = dom::make_band_optics(m, group.optics, own, ang, opt_.delta_m);
             check_diamond_dsa(d, p);
             dom::add_light_sources(p, d, m, lights, group.optics,
                                    std::vector<double>(weight.begin(), weight.begin() + static_cast<std::ptrdiff_t>(nl)), ang);
+            set_emission(p, sources, m.rho, weight, nl);
             sweeper.reset_reflections();
             if (bc.sky) sweeper.set_sky_radiance(weight[sky_term]);
-            if (!sources.empty())
-                for_each_cell(own, [&](int i, int j, int k) {
-                    const double e = emitted_power_at(
-                        sources, m.rho, [&](size_t t) { return weight[nl + t]; }, i, j, k, {i, j, k});
-                    p.emission(i, j, k) = e / (4.0 * std::acos(-1.0));
-                });
             dom::SweepOutput sw;
             const dom::IterationResult res =
                 opt_.iteration == "gmres"
@@ -179,46 +268,17 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
             entry["history"] = res.history;
             if (!res.converged) {
                 rec["solves"].push_back(entry);
-                if (res.stalled)
-                    throw Error(fmt::format(
-                        "dom: the solve of {} diverges with iteration = \"{}\": the relative change has stayed above "
-                        "{:g} times its lowest value for {} iterations ({}); use model.dom.iteration = "
-                        "\"gmres\" (DSA-preconditioned GMRES)",
-                        for_bands, opt_.iteration, dom::kStallGrowth, dom::kStallWindow,
-                        dom::format_history(res.history)));
-                throw Error(fmt::format("dom: the solve of {} did not converge in {} {} iterations (tolerance {:.1e}); "
-                                        "relative change: {}; raise model.dom.max_iterations or use "
-                                        "model.dom.iteration = \"gmres\"", for_bands, res.iterations,
-                                        opt_.iteration, opt_.tolerance, dom::format_history(res.history)));
+                throw_not_converged(opt_, res, fmt::format("{} {}", band_names.size() == 1 ? "band" : "bands",
+                                                           fmt::join(band_names, ", ")));
             }
-            // Energy balance of the scaled problem: emitted + first-collision = absorbed + net
-            // leakage (light that came in through the faces, the sky as boundary radiance or a
-            // mirror, counts against it), relative to the external power: the sources and the
-            // sky's incoming light.
-            double e[2] = {0.0, 0.0};
-            const double vol = m.grid.cell_volume();
-            for_each_cell(own, [&](int i, int j, int k) {
-                double src = 4.0 * std::acos(-1.0) * p.emission(i, j, k);
-                for (int l = 0; l < p.nl; ++l) src += p.amp(i, j, k, l);
-                e[0] += vol * src;
-                e[1] += vol * p.sigma_a(i, j, k) * sw.fluence(i, j, k);
-            });
-            MPI_Allreduce(MPI_IN_PLACE, e, 2, MPI_DOUBLE, MPI_SUM, d.comm());
-            double leaked = 0.0;
-            for (double v : sw.leakage) leaked += v;
             double seconds = res.seconds;
             MPI_Allreduce(MPI_IN_PLACE, &seconds, 1, MPI_DOUBLE, MPI_MAX, d.comm());
             iter_seconds += seconds;
-            unknown_iterations += global_cells * ndir * res.iterations;
+            unknown_iterations += static_cast<double>(d.global().cells()) * ang.quadrature.size() * res.iterations;
             entry["dsa_linear_iterations"] = res.dsa_linear_iterations;
             entry["delta_m_f"] = p.phase.f;
             entry["seconds"] = seconds;
-            entry["source_power"] = e[0];
-            entry["sky_incoming_power"] = sw.sky_incoming;
-            entry["absorbed_power"] = e[1];
-            entry["leakage"] = sw.leakage;
-            const double power_in = e[0] + sw.sky_incoming;
-            entry["energy_balance"] = power_in > 0 ? (e[0] - e[1] - leaked) / power_in : 0.0;
+            record_energy_balance(d, m.grid.cell_volume(), p, sw, entry);
             rec["solves"].push_back(entry);
             // Sky as boundary radiance: psi holds the uncollided sky too; DESIGN's fluence_diffuse
             // excludes it, so subtract the discrete uncollided sky (one sweep, true kappa: the
@@ -226,43 +286,13 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
             dom::SweepOutput unc;
             const bool sky_lit = bc.sky && weight[sky_term] != 0.0;
             if (sky_lit) uncollided_sky(m, group.optics, ang, sweeper, unc);
-            // Each band that uses this solve adds it at its scale.
-            for_each_use(group, r, [&](int band, double scale) {
-                Field<double>& fl = out.fluence[static_cast<size_t>(band)];
-                Field<double>& fx = out.flux[static_cast<size_t>(band)];
-                for_each_cell(own, [&](int i, int j, int k) {
-                    fl(i, j, k) += scale * (sw.fluence(i, j, k) + p.forward_fluence(i, j, k) -
-                                            (sky_lit ? unc.fluence(i, j, k) : 0.0));
-                    for (int c = 0; c < 3; ++c)
-                        fx(i, j, k, c) += scale * (sw.flux(i, j, k, c) + p.forward_flux(i, j, k, c) -
-                                                   (sky_lit ? unc.flux(i, j, k, c) : 0.0));
-                });
-            });
+            add_to_bands(group, r, p, sw, sky_lit ? &unc : nullptr, out);
         }
     for (int b = 0; b < m.nbands(); ++b) {
         exchange_halo(out.fluence[static_cast<size_t>(b)], d);
         exchange_halo(out.flux[static_cast<size_t>(b)], d);
     }
-    // Figures of merit (Kripke's definition: time / (global unknowns x iterations)).
-    const dom::SweepTiming& t = sweeper.timing();
-    double tm[3] = {t.sweep_seconds, t.wait_seconds, 0.0};
-    double eff = t.sweep_seconds > 0 ? 1.0 - t.wait_seconds / t.sweep_seconds : 1.0;
-    MPI_Allreduce(MPI_IN_PLACE, tm, 2, MPI_DOUBLE, MPI_MAX, d.comm());
-    MPI_Allreduce(MPI_IN_PLACE, &eff, 1, MPI_DOUBLE, MPI_MIN, d.comm());
-    rec["grind_time_ns"] = unknown_iterations > 0 ? 1e9 * iter_seconds / unknown_iterations : 0.0;
-    rec["sweep_grind_time_ns"] = unknown_iterations > 0 ? 1e9 * tm[0] / unknown_iterations : 0.0;
-    rec["sweep_seconds"] = tm[0];
-    rec["pipeline_wait_seconds"] = tm[1];
-    rec["sweep_efficiency"] = eff;
-    rec["periodic_passes"] = t.periodic_passes;
-    rec["scheme"] = opt_.scheme;
-    std::int64_t fixups = t.fixups;  // diamond: cell-directions fixed up, all ranks
-    MPI_Allreduce(MPI_IN_PLACE, &fixups, 1, MPI_INT64_T, MPI_SUM, d.comm());
-    rec["fixups"] = fixups;
-    rec["state_bytes_per_cell"] = state_bytes_per_cell(ang, static_cast<int>(ctx.light.lights.size()));
-    if (d.rank() == 0)
-        log::info("dom: {} on {}, grind time {:.2f} ns, sweep efficiency {:.2f}", ang.quadrature.name,
-                  d.describe(), rec["grind_time_ns"].get<double>(), eff);
+    record_figures_of_merit(d, sweeper, ang, iter_seconds, unknown_iterations, rec);
 }
 
 }  // namespace
