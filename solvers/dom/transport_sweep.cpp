@@ -119,6 +119,14 @@ void group_moments(const Box& own, const AngularSet& ang, const std::vector<Octa
         }
 }
 
+// The ghost cells through which an octant moving with sign s along periodic axis a enters.
+Box periodic_ghost_plane(const Box& own, int a, int s) {
+    Box p = own;
+    p.lo[a] = s > 0 ? own.lo[a] - 1 : own.hi[a];
+    p.hi[a] = p.lo[a] + 1;
+    return p;
+}
+
 }  // namespace
 
 void check_sweep_decomposition(const Decomposition& d) {
@@ -192,6 +200,39 @@ void TransportSweeper::reset_reflections() {
         for (auto& plane : face) plane.clear();
     for (auto& c : mirror_current_) c.clear();
     for (auto& c : mirror_current_prev_) c.clear();
+    for (auto& axis : periodic_planes_)
+        for (auto& plane : axis) plane.clear();
+}
+
+void TransportSweeper::load_periodic_planes(Field<double>& psi, int o) {
+    const auto& oc = ang_.octants[static_cast<size_t>(o)];
+    const int nd = oc.size();
+    for (int a = 0; a < 2; ++a) {
+        if (!d_.periodic(a)) continue;
+        const std::vector<double>& buf = periodic_planes_[static_cast<size_t>(a)][static_cast<size_t>(o)];
+        const int off = face_offset(a, nd);
+        for_each_cell(periodic_ghost_plane(d_.local(), a, oc.octant.s[a]), [&](int i, int j, int k) {
+            double* v = &psi(i, j, k) + off;
+            if (buf.empty()) std::fill(v, v + nd, 0.0);
+            else std::copy_n(buf.data() + plane_index(a, i, j, k) * nd, nd, v);
+        });
+    }
+}
+
+void TransportSweeper::store_periodic_planes(const Field<double>& psi, int o) {
+    const auto& oc = ang_.octants[static_cast<size_t>(o)];
+    const int nd = oc.size();
+    for (int a = 0; a < 2; ++a) {
+        if (!d_.periodic(a)) continue;
+        const Box p = periodic_ghost_plane(d_.local(), a, oc.octant.s[a]);
+        std::vector<double>& buf = periodic_planes_[static_cast<size_t>(a)][static_cast<size_t>(o)];
+        buf.resize(static_cast<size_t>(p.cells() * nd));
+        const int off = face_offset(a, nd);
+        for_each_cell(p, [&](int i, int j, int k) {
+            const double* v = &psi(i, j, k) + off;
+            std::copy_n(v, nd, buf.data() + plane_index(a, i, j, k) * nd);
+        });
+    }
 }
 
 void TransportSweeper::set_upwind_ghosts(Field<double>& psi, int o) {
@@ -339,11 +380,16 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
     // since its face relation out = 2 psi - in passes a ghost error on with a factor near -1
     // for directions nearly normal to the axis, and the fix-up's switching can then cycle
     // (measured: a 2-cycle on the sky-lit absorber slab, S8, without the relaxation).
+    // The test is relative to the largest edge value of any pass of this layer, not of the last
+    // one: where the layer's answer is 0 (upward directions under the medium) the ghosts start
+    // from another octant's values and both the change and the edge values fall geometrically to
+    // underflow with a constant ratio, which took ~185 passes (a quarter of the slab's layers).
     auto periodic_layer = [&](OctantSlot& sl, int k) {
         Field<double>& psi = *sl.psi;
         const int nd = sl.nd;
+        double scale = 0.0;
         for (int pass = 0;; ++pass) {
-            double change = 0.0, scale = 0.0;
+            double change = 0.0;
             for (int a = 0; a < 2; ++a) {
                 if (!d_.periodic(a)) continue;
                 const int s = sl.octant.s[a];
@@ -422,7 +468,10 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
         const double t_src = MPI_Wtime();
         group_sources(own.cells(), src, ang_, slots);
         timing_.moment_seconds += MPI_Wtime() - t_src;
-        for (OctantSlot& sl : slots) set_upwind_ghosts(*sl.psi, sl.o);
+        for (OctantSlot& sl : slots) {
+            set_upwind_ghosts(*sl.psi, sl.o);
+            if (periodic) load_periodic_planes(*sl.psi, sl.o);
+        }
         const double t0 = MPI_Wtime();
         sweep::SweepStats stats;
         if (slots.size() == 1) {
@@ -444,6 +493,7 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
             timing_.cell_directions += own.cells() * sl.nd;
             timing_.fixups += sl.fixups;
             store_reflected(*sl.psi, sl.o);
+            if (periodic) store_periodic_planes(*sl.psi, sl.o);
             out.min_psi = std::min(out.min_psi, min_owned(*sl.psi));
         }
         const double t1 = MPI_Wtime();

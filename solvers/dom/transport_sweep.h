@@ -41,7 +41,10 @@
 //   (under-relaxed by 1/2 for diamond, see sweep()): the engine sweeps
 // whole z layers, and after a layer is done its upwind ghost columns/rows are set to its
 // downwind edges and the layer is recomputed until they change by less than
-// `periodic_tolerance` (relative, max norm). Local work only, no extra communication.
+// `periodic_tolerance` (relative to the layer's largest edge value, max norm). Each octant's
+// ghost planes start from where they ended in the previous sweep (kept per octant), so once
+// the outer iteration settles a layer needs one or two passes. Local work only, no extra
+// communication.
 // Periodic axes must not be split over ranks.
 //
 // Outputs per sweep (owned cells): the moments phi_k = Σ_n w_n Y_k(Ω_n) psi_n, the fluence
@@ -120,7 +123,8 @@ public:
     const SweepBoundary& boundary() const { return bc_; }
     // Uniform sky radiance L (W/m²/sr) of the current band for SweepBoundary::sky.
     void set_sky_radiance(double L) { sky_radiance_ = L; }
-    // Forgets the lagged reflected planes (zero), e.g. before a new band.
+    // Forgets the lagged reflected planes (zero) and the periodic planes' starting guesses,
+    // e.g. before a new band: a new problem starts from zero.
     void reset_reflections();
     // A HIGH mirror face returns the previous sweep's outgoing light (a low one the same
     // sweep's): calls f(i, j, k, dJ) for each of this rank's boundary cells on a high
@@ -146,6 +150,8 @@ public:
 private:
     void set_upwind_ghosts(Field<double>& psi, int o);
     void store_reflected(const Field<double>& psi, int o);
+    void load_periodic_planes(Field<double>& psi, int o);         // upwind periodic ghosts of octant o
+    void store_periodic_planes(const Field<double>& psi, int o);  // ... after its sweep
     void reduce_octant(const Field<double>& psi, int o, SweepOutput& out);  // leakage of octant o
     int face_offset(int axis, int nd) const { return scheme_ == SpatialScheme::diamond ? (1 + axis) * nd : 0; }
     std::ptrdiff_t plane_index(int axis, int i, int j, int k) const;
@@ -174,6 +180,10 @@ private:
     // reflected_[f][o]: outgoing face values of the boundary plane of face f (reflective, on
     // this rank) for the octant o leaving through it, plane cells x nd.
     std::array<std::array<std::vector<double>, 8>, 6> reflected_;
+    // periodic_planes_[a][o]: the upwind ghost plane of periodic axis a (x or y) as octant o's
+    // last sweep left it (plane cells x nd, face values), the start of its next sweep's layer
+    // iteration; empty: zero.
+    std::array<std::array<std::vector<double>, 8>, 2> periodic_planes_;
     std::array<double, 6> incoming_{};  // power entering through each face in this sweep (W)
     double sky_incoming_ = 0.0;         // of which the sky radiance's, all faces (W)
     // Per psi buffer (its data pointer) and face: whether set_upwind_ghosts may have left a

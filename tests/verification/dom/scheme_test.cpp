@@ -16,6 +16,7 @@
 #include <cstdio>
 #include <limits>
 #include <numbers>
+#include <string>
 
 #include "solvers/dom/angular_set.h"
 #include "solvers/dom/band_problem.h"
@@ -473,6 +474,44 @@ TEST(DomBoundary, ReflectiveOnAPeriodicAxisIsAnError) {
     EXPECT_THROW(o.validate(), Error);
 }
 
+// Periodic x/y: each z layer of each octant is swept until its periodic ghosts agree with its
+// edges (transport_sweep.cpp). On a slab with empty layers under and over it (as scenes/slab.toml)
+// two things made that slow. Where a layer's answer is 0 (upward directions under the slab) the
+// ghosts started from another octant's values, and a test relative to the last pass's edge
+// values never passed before underflow (~185 passes); and every layer started from such values.
+// Extra passes per layer here (source iteration, 26-27 iterations), step / diamond: 73 / - before,
+// 7.9 / 28.5 with the test relative to the layer's largest edge value, 3.6 / 12.8 with each
+// octant's planes kept from its previous sweep as the start.
+TEST(DomBoundary, PeriodicLayersConvergeInFewPassesWhereTheLightIsZero) {
+    const int nz = 32;
+    for (const char* scheme : {"step", "diamond"}) {
+        test::DomWorld w(MPI_COMM_WORLD, {8, 8, nz}, 1.0, BandOptics{"gray", 0.1, 0.9, 0.5}, {true, true, false});
+        for_each_cell(w.d.local(), [&](int i, int j, int k) { w.m.rho(i, j, k) = (k >= nz / 4 && k < 3 * nz / 4) ? 1.0 : 0.0; });
+        w.add_sun_from_top({0.3, 0.2, -0.9});  // tau from the domain top: only a source here
+        DomOptions o;
+        o.scheme = scheme;
+        o.iteration = "source";
+        o.tolerance = 1e-6;
+        DiffuseSolution sol;
+        make_dom_model(o)->solve(w.ctx(), sol);
+        const auto& rec = w.report.values()["dom"];
+        const auto& band = rec["solves"][0];
+        const int iterations = band["iterations"].get<int>();
+        // Layer solves: 8 octants x nz layers per sweep, one sweep per source iteration (the
+        // report's count is this rank's).
+        double passes = rec["periodic_passes"].get<double>();
+        MPI_Allreduce(MPI_IN_PLACE, &passes, 1, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+        const double passes_per_layer = passes / (8.0 * nz * iterations);
+        if (test::world_rank() == 0)
+            std::printf("periodic slab, %s: %d iterations, %.2f extra passes per layer, energy balance %.1e\n", scheme,
+                        iterations, passes_per_layer, band["energy_balance"].get<double>());
+        EXPECT_TRUE(band["converged"].get<bool>()) << scheme;
+        EXPECT_LT(passes_per_layer, std::string(scheme) == "step" ? 5.0 : 16.0) << scheme;
+        // Stopping the layer iteration early would break the balance of absorbed and leaked light.
+        EXPECT_LT(std::abs(band["energy_balance"].get<double>()), 1e-5) << scheme;
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Sky radiance as a boundary condition.
 
@@ -564,7 +603,11 @@ TEST(DomSky, PureAbsorberHasNoDiffuseLightWithBoundarySky) {
     double m = 0.0;
     for (double v : r.fluence) m = std::max(m, std::abs(v));
     if (test::world_rank() == 0) std::printf("sky boundary, pure absorber: max |fluence_diffuse| %.2e\n", m);
-    EXPECT_LT(m, 1e-13);
+    // fluence_diffuse = the solve's fluence - the uncollided sky's (one more sweep), each with
+    // periodic planes converged to 0.1 x tolerance = 1e-11 of the edge radiance (<= L = 0.5) per
+    // direction: |difference| <= 2π L 1e-11 = 3.1e-11 (measured 2.8e-12). Until the planes were
+    // kept between sweeps both started from the same values and cancelled to round-off (< 1e-13).
+    EXPECT_LT(m, 2.0 * kPi * 0.5 * 1e-11);
 }
 
 TEST(DomSky, BoundaryAgreesWithFirstCollision) {
