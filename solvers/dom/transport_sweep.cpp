@@ -36,12 +36,9 @@ inline std::ptrdiff_t cell_offset(const Box& b, int i, int j, int k) {
 // the order of their octants' x/y bits, so a reflective LOW x/y face still sees its mirrored
 // octant finished earlier in the same sweep (transport_sweep.h). A reflective z- face needs
 // octant o before o + 4, so it limits the overlap to 1; a reflective x- or y- face limits 8 to 2.
-// Periodic x/y: 1. (The layer iteration starts from the ghost values the field holds from its
-// previous octant, so its tolerance-level result, 1e-11, would depend on which octants share a
-// field; with one field it is the same sequence every sweep, and a periodic slab run has one
-// tile per rank anyway.)
-std::vector<std::vector<int>> octant_groups(int overlap, const std::array<bool, 6>& reflective, bool periodic) {
-    if (periodic) overlap = 1;
+// Periodic x/y planes start from the octant's own previous sweep (periodic_planes_), whichever
+// field it runs in, so any overlap gives the same result.
+std::vector<std::vector<int>> octant_groups(int overlap, const std::array<bool, 6>& reflective) {
     if (overlap == 8 && (reflective[0] || reflective[2] || reflective[4])) overlap = 2;
     if (overlap == 2 && reflective[4]) overlap = 1;
     std::vector<std::vector<int>> groups;
@@ -375,8 +372,8 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
     };
     // Periodic x/y: the engine sweeps whole z layers (one tile); after the last cell of a
     // layer, the layer's periodic ghosts are set to its downwind edges and the layer is
-    // recomputed until they agree (local: no communication; octant_overlap is 1 then, see
-    // octant_groups). Diamond: under-relaxed by 1/2,
+    // recomputed until they agree (local: no communication; each octant's planes start from its
+    // previous sweep, load_periodic_planes). Diamond: under-relaxed by 1/2,
     // since its face relation out = 2 psi - in passes a ghost error on with a factor near -1
     // for directions nearly normal to the axis, and the fix-up's switching can then cycle
     // (measured: a 2-cycle on the sky-lit absorber slab, S8, without the relaxation).
@@ -420,7 +417,7 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
         cell_kernel(sl, i, j, k);
         if (periodic && i == sl.last_i && j == sl.last_j) periodic_layer(sl, k);
     };
-    for (const std::vector<int>& group : octant_groups(opt_.octant_overlap, bc_.reflective, periodic)) {
+    for (const std::vector<int>& group : octant_groups(opt_.octant_overlap, bc_.reflective)) {
         std::vector<OctantSlot> slots;
         if (overlap_psi_.size() + 1 < group.size()) {  // before taking pointers into them
             overlap_psi_.resize(group.size() - 1);

@@ -10,8 +10,9 @@
 // plane), so a +z and a -z octant run from the opposite ends of the slab chain and the
 // pipeline fill of one is covered by the other's work. Memory: one psi field and one source
 // per octant in flight. A reflective z- face limits the overlap to 1 and a reflective x- or y-
-// face limits 8 to 2 (the mirrored octant must finish first, see below); periodic x/y sweeps
-// run with overlap 1 (octant_groups in the .cpp says why).
+// face limits 8 to 2 (the mirrored octant must finish first, see below). Periodic x/y sweeps
+// overlap too: each octant's periodic planes start from its own previous sweep, so the
+// result does not depend on the overlap.
 //
 // Spatial scheme (cell_kernel.h): step, psi stored as one value per direction and cell
 // (ncomp = nd, the upwind cell's value is the incoming face value); or diamond difference with

@@ -1,7 +1,8 @@
 // Octant overlap in the DOM transport sweep (solvers/dom/transport_sweep.h, octant_overlap 1, 2,
 // 8): the moments, fluence, flux and leakage of a sweep do not depend on how many octants are in
 // flight, to round-off (only the order of the octant sums changes), for step and diamond, with
-// many and with few tiles, with periodic x and with reflective faces (where the overlap is
+// many and with few tiles, periodic (whose planes start from each octant's own previous sweep,
+// so periodic sweeps overlap too) and with reflective faces (where the overlap is
 // limited), on 1 and 2 ranks. Source: smooth positive moments and a first-collision beam.
 #include <gtest/gtest.h>
 
@@ -78,6 +79,7 @@ TEST(DomOctantOverlap, SweepResultDoesNotDependOnTheOverlap) {
         {"step, one tile", SpatialScheme::step, 100, {false, false, false}, none},
         {"diamond, tile_rows 3", SpatialScheme::diamond, 3, {false, false, false}, none},
         {"step, periodic x", SpatialScheme::step, 2, {true, false, false}, none},
+        {"diamond, periodic x y", SpatialScheme::diamond, 2, {true, true, false}, none},
         {"step, reflective x+ z+", SpatialScheme::step, 2, {false, false, false}, refl_high},
         {"step, reflective x-", SpatialScheme::step, 2, {false, false, false}, refl_x_low},
         {"step, reflective x- z-", SpatialScheme::step, 2, {false, false, false}, refl_low},
