@@ -479,7 +479,7 @@ TEST(DomBoundary, ReflectiveOnAPeriodicAxisIsAnError) {
 // two things made that slow. Where a layer's answer is 0 (upward directions under the slab) the
 // ghosts started from another octant's values, and a test relative to the last pass's edge
 // values never passed before underflow (~185 passes); and every layer started from such values.
-// Extra passes per layer here (source iteration, 26-27 iterations), step / diamond: 73 / - before,
+// Extra passes per layer here (source iteration, 26-27 iterations), step / diamond: 73 / (not run) before,
 // 7.9 / 28.5 with the test relative to the layer's largest edge value, 3.6 / 12.8 with each
 // octant's planes kept from its previous sweep as the start.
 TEST(DomBoundary, PeriodicLayersConvergeInFewPassesWhereTheLightIsZero) {
