@@ -23,7 +23,8 @@ namespace {
 
 // The uncollided sky of optics o on the quadrature: one sweep of the sky boundary radiance alone
 // (no volume source, no scattering) with the true extinction kappa = rho sigma_t. The lagged
-// reflected planes are cleared first (a high reflective face then reflects nothing of it).
+// reflected planes are cleared first (a high reflective face then reflects nothing of it); the
+// periodic planes start from the solve's last sweep.
 void uncollided_sky(const Medium& m, const BandOptics& o, const dom::AngularSet& ang, dom::TransportSweeper& sweeper,
                     dom::SweepOutput& unc) {
     const Box own = m.rho.owned();
@@ -256,6 +257,7 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
                                    std::vector<double>(weight.begin(), weight.begin() + static_cast<std::ptrdiff_t>(nl)), ang);
             set_emission(p, sources, m.rho, weight, nl);
             sweeper.reset_reflections();
+            sweeper.reset_periodic_planes();
             if (bc.sky) sweeper.set_sky_radiance(weight[sky_term]);
             dom::SweepOutput sw;
             const dom::IterationResult res =

@@ -197,16 +197,20 @@ void TransportSweeper::reset_reflections() {
         for (auto& plane : face) plane.clear();
     for (auto& c : mirror_current_) c.clear();
     for (auto& c : mirror_current_prev_) c.clear();
+}
+
+void TransportSweeper::reset_periodic_planes() {
     for (auto& axis : periodic_planes_)
         for (auto& plane : axis) plane.clear();
 }
 
-void TransportSweeper::load_periodic_planes(Field<double>& psi, int o) {
+void TransportSweeper::load_periodic_planes(Field<double>& psi, int o, bool from_zero) {
     const auto& oc = ang_.octants[static_cast<size_t>(o)];
     const int nd = oc.size();
+    static const std::vector<double> none;
     for (int a = 0; a < 2; ++a) {
         if (!d_.periodic(a)) continue;
-        const std::vector<double>& buf = periodic_planes_[static_cast<size_t>(a)][static_cast<size_t>(o)];
+        const std::vector<double>& buf = from_zero ? none : periodic_planes_[static_cast<size_t>(a)][static_cast<size_t>(o)];
         const int off = face_offset(a, nd);
         for_each_cell(periodic_ghost_plane(d_.local(), a, oc.octant.s[a]), [&](int i, int j, int k) {
             double* v = &psi(i, j, k) + off;
@@ -353,6 +357,12 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
     }
     sky_on_ = bc_.sky && src.amp != nullptr;
     const bool fixup = fixup_ && src.amp != nullptr;  // not on GMRES's operator sweeps (must stay linear)
+    // Periodic planes start from this octant's previous sweep only on sweeps with the external
+    // sources (source iteration, DSA, GMRES's right-hand side and final sweep): GMRES's operator
+    // sweeps of Krylov vectors start from zero, so that K(v) does not depend on the vector swept
+    // before (whose planes may be of any size: the stopping test is relative to the largest edge
+    // value, stale ones included) and K(0) = 0.
+    const bool external = src.amp != nullptr;
     const double* kap = src.kappa->data();
     // Octants in groups swept at once (octant_groups above; a group of one is the plain KBA
     // sweep). Slot q of a group holds octant group[q]: its psi field (slot 0: psi_, others:
@@ -467,7 +477,7 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
         timing_.moment_seconds += MPI_Wtime() - t_src;
         for (OctantSlot& sl : slots) {
             set_upwind_ghosts(*sl.psi, sl.o);
-            if (periodic) load_periodic_planes(*sl.psi, sl.o);
+            if (periodic) load_periodic_planes(*sl.psi, sl.o, !external);
         }
         const double t0 = MPI_Wtime();
         sweep::SweepStats stats;
@@ -490,7 +500,7 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
             timing_.cell_directions += own.cells() * sl.nd;
             timing_.fixups += sl.fixups;
             store_reflected(*sl.psi, sl.o);
-            if (periodic) store_periodic_planes(*sl.psi, sl.o);
+            if (periodic && external) store_periodic_planes(*sl.psi, sl.o);
             out.min_psi = std::min(out.min_psi, min_owned(*sl.psi));
         }
         const double t1 = MPI_Wtime();

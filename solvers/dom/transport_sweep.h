@@ -42,10 +42,10 @@
 //   (under-relaxed by 1/2 for diamond, see sweep()): the engine sweeps
 // whole z layers, and after a layer is done its upwind ghost columns/rows are set to its
 // downwind edges and the layer is recomputed until they change by less than
-// `periodic_tolerance` (relative to the layer's largest edge value, max norm). Each octant's
-// ghost planes start from where they ended in the previous sweep (kept per octant), so once
-// the outer iteration settles a layer needs one or two passes. Local work only, no extra
-// communication.
+// `periodic_tolerance` (relative to the layer's largest edge value, max norm). On sweeps with
+// the external sources each octant's ghost planes start from where its previous such sweep
+// left them (kept per octant), so once source iteration or DSA settles a layer needs one or two
+// passes; GMRES's operator sweeps start from zero. Local work only, no extra communication.
 // Periodic axes must not be split over ranks.
 //
 // Outputs per sweep (owned cells): the moments phi_k = Σ_n w_n Y_k(Ω_n) psi_n, the fluence
@@ -124,9 +124,11 @@ public:
     const SweepBoundary& boundary() const { return bc_; }
     // Uniform sky radiance L (W/m²/sr) of the current band for SweepBoundary::sky.
     void set_sky_radiance(double L) { sky_radiance_ = L; }
-    // Forgets the lagged reflected planes (zero) and the periodic planes' starting guesses,
-    // e.g. before a new band: a new problem starts from zero.
+    // Forgets the lagged reflected planes (zero), e.g. before a new band.
     void reset_reflections();
+    // Forgets the periodic planes' starting guesses (below), e.g. before a new band: its first
+    // sweep starts from zero.
+    void reset_periodic_planes();
     // A HIGH mirror face returns the previous sweep's outgoing light (a low one the same
     // sweep's): calls f(i, j, k, dJ) for each of this rank's boundary cells on a high
     // reflective face, dJ = outgoing current of the last sweep minus that of the one before
@@ -151,7 +153,7 @@ public:
 private:
     void set_upwind_ghosts(Field<double>& psi, int o);
     void store_reflected(const Field<double>& psi, int o);
-    void load_periodic_planes(Field<double>& psi, int o);         // upwind periodic ghosts of octant o
+    void load_periodic_planes(Field<double>& psi, int o, bool from_zero);  // upwind periodic ghosts of octant o
     void store_periodic_planes(const Field<double>& psi, int o);  // ... after its sweep
     void reduce_octant(const Field<double>& psi, int o, SweepOutput& out);  // leakage of octant o
     int face_offset(int axis, int nd) const { return scheme_ == SpatialScheme::diamond ? (1 + axis) * nd : 0; }
