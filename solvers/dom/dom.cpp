@@ -68,7 +68,7 @@ public:
     // Peak = about twice the state (3 moment fields, angular fluxes of the largest octant, the
     // band's coefficients, the light sources: state_bytes_per_cell below) per local cell, measured
     // 1.95x and 2.01x on the default cloud at S4 L3 and S8 L7; GMRES adds its Krylov basis, up to
-    // 31 vectors of all moments (restart 30).
+    // 31 vectors of all moments (restart 30), and periodic x/y the kept ghost planes.
     // Before the light pass: the decomposition the sweeps need, and diamond with DSA on cells too
     // thick for it (check_diamond_dsa, from the medium: kappa* = (1 - a f) rho sigma_t of every band).
     void check_layout(const Decomposition& d) const override { dom::check_sweep_decomposition(d); }
@@ -93,7 +93,10 @@ public:
         double per_cell = 2.0 * state_bytes_per_cell(ang, nlights);
         if (opt_.iteration == "gmres" || opt_.iteration == "gmres-plain")
             per_cell += 8.0 * ang.nmom * (std::min(opt_.max_iterations, 30) + 1);
-        return per_cell * static_cast<double>(d.local().cells());
+        // Periodic x/y: every direction's ghost plane per periodic axis is kept between sweeps.
+        const Box& own = d.local();
+        const double planes = (d.periodic(0) ? own.size(1) : 0) + (d.periodic(1) ? own.size(0) : 0);
+        return per_cell * static_cast<double>(own.cells()) + 8.0 * ang.quadrature.size() * planes * own.size(2);
     }
 
 private:

@@ -22,6 +22,20 @@ double estimate(const std::string& model, void (*tweak)(Scene&) = nullptr) {
     return cmd::estimate_memory(s, d).bytes;
 }
 
+// DOM keeps every direction's periodic ghost planes between sweeps (transport_sweep.h):
+// (ny + nx) nz values per direction with x and y periodic, 24 directions at S4.
+TEST(MemoryEstimate, DomCountsItsPeriodicPlanes) {
+    Scene s = default_scene();
+    s.grid.n = {48, 40, 32};
+    s.model.name = "dom";
+    const Decomposition flat(MPI_COMM_WORLD, s.grid.n);
+    const double without = cmd::estimate_memory(s, flat).bytes;
+    s.grid.periodic = {true, true, false};
+    const Decomposition periodic(MPI_COMM_WORLD, s.grid.n, {0, 0, 0}, s.grid.periodic);
+    const double extra = cmd::estimate_memory(s, periodic).bytes - without;  // this rank's
+    EXPECT_DOUBLE_EQ(extra, 8.0 * 24 * (40 + 48) * periodic.local().size(2));
+}
+
 TEST(MemoryEstimate, EachModelAddsItsStorage) {
     const double single = estimate("single");
     for (const char* m : {"diffusion", "dom", "lpm", "psf", "montecarlo"}) EXPECT_GT(estimate(m), single) << m;
