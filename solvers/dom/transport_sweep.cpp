@@ -116,8 +116,9 @@ void group_moments(const Box& own, const AngularSet& ang, const std::vector<Octa
         }
 }
 
-// The ghost cells through which an octant moving with sign s along periodic axis a enters.
-Box periodic_ghost_plane(const Box& own, int a, int s) {
+// The plane of ghost cells through which an octant moving with sign s along axis a enters the
+// box own (a domain face's boundary values, or a periodic axis's wrapped ones).
+Box upwind_ghost_plane(const Box& own, int a, int s) {
     Box p = own;
     p.lo[a] = s > 0 ? own.lo[a] - 1 : own.hi[a];
     p.hi[a] = p.lo[a] + 1;
@@ -212,7 +213,7 @@ void TransportSweeper::load_periodic_planes(Field<double>& psi, int o, bool from
         if (!d_.periodic(a)) continue;
         const std::vector<double>& buf = from_zero ? none : periodic_planes_[static_cast<size_t>(a)][static_cast<size_t>(o)];
         const int off = face_offset(a, nd);
-        for_each_cell(periodic_ghost_plane(d_.local(), a, oc.octant.s[a]), [&](int i, int j, int k) {
+        for_each_cell(upwind_ghost_plane(d_.local(), a, oc.octant.s[a]), [&](int i, int j, int k) {
             double* v = &psi(i, j, k) + off;
             if (buf.empty()) std::fill(v, v + nd, 0.0);
             else std::copy_n(buf.data() + plane_index(a, i, j, k) * nd, nd, v);
@@ -225,7 +226,7 @@ void TransportSweeper::store_periodic_planes(const Field<double>& psi, int o) {
     const int nd = oc.size();
     for (int a = 0; a < 2; ++a) {
         if (!d_.periodic(a)) continue;
-        const Box p = periodic_ghost_plane(d_.local(), a, oc.octant.s[a]);
+        const Box p = upwind_ghost_plane(d_.local(), a, oc.octant.s[a]);
         std::vector<double>& buf = periodic_planes_[static_cast<size_t>(a)][static_cast<size_t>(o)];
         buf.resize(static_cast<size_t>(p.cells() * nd));
         const int off = face_offset(a, nd);
@@ -257,9 +258,7 @@ void TransportSweeper::set_upwind_ghosts(Field<double>& psi, int o) {
         if (!reflective && !sky && !nonzero) continue;
         nonzero = reflective || sky;
         const double* mu = oc.abs_mu[static_cast<size_t>(a)].data();
-        Box p = own;
-        p.lo[a] = s > 0 ? own.lo[a] - 1 : own.hi[a];
-        p.hi[a] = p.lo[a] + 1;
+        const Box p = upwind_ghost_plane(own, a, s);
         double power = 0.0;
         for_each_cell(p, [&](int i, int j, int k) {
             double* v = &psi(i, j, k);
@@ -388,9 +387,9 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
     // for directions nearly normal to the axis, and the fix-up's switching can then cycle
     // (measured: a 2-cycle on the sky-lit absorber slab, S8, without the relaxation).
     // The test is relative to the largest edge value of any pass of this layer, not of the last
-    // one: where the layer's answer is 0 (upward directions under the medium) the ghosts start
-    // from another octant's values and both the change and the edge values fall geometrically to
-    // underflow with a constant ratio, which took ~185 passes (a quarter of the slab's layers).
+    // one: where the layer's answer is 0 (upward directions under the medium) but its start is
+    // not, the change and the edge values fall geometrically together with a constant ratio,
+    // which took ~185 passes to underflow on a quarter of the slab's layers.
     auto periodic_layer = [&](OctantSlot& sl, int k) {
         Field<double>& psi = *sl.psi;
         const int nd = sl.nd;
@@ -400,7 +399,7 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
             for (int a = 0; a < 2; ++a) {
                 if (!d_.periodic(a)) continue;
                 const int s = sl.octant.s[a];
-                const int ghost = s > 0 ? own.lo[a] - 1 : own.hi[a], edge = s > 0 ? own.hi[a] - 1 : own.lo[a];
+                const int ghost = upwind_ghost_plane(own, a, s).lo[a], edge = s > 0 ? own.hi[a] - 1 : own.lo[a];
                 const int b = 1 - a;
                 for (int t = own.lo[b]; t < own.hi[b]; ++t) {
                     double* g = (a == 0 ? &psi(ghost, t, k) : &psi(t, ghost, k)) + face_offset(a, nd);
