@@ -482,7 +482,8 @@ TEST(DomBoundary, ReflectiveOnAPeriodicAxisIsAnError) {
 // values never passed before underflow (~185 passes); and every layer started from such values.
 // Extra passes per layer here (source iteration, 26-27 iterations), step / diamond: 73 / (not run) before,
 // 7.9 / 28.5 with the test relative to the layer's largest edge value, 3.6 / 12.8 with each
-// octant's planes kept from its previous sweep as the start.
+// octant's planes kept from its previous sweep as the start, 3.6 / 5.7 with diamond's ghosts
+// from Anderson acceleration instead of steps halfway to the edges.
 TEST(DomBoundary, PeriodicLayersConvergeInFewPassesWhereTheLightIsZero) {
     const int nz = 32;
     for (const char* scheme : {"step", "diamond"}) {
@@ -507,7 +508,7 @@ TEST(DomBoundary, PeriodicLayersConvergeInFewPassesWhereTheLightIsZero) {
             std::printf("periodic slab, %s: %d iterations, %.2f extra passes per layer, energy balance %.1e\n", scheme,
                         iterations, passes_per_layer, band["energy_balance"].get<double>());
         EXPECT_TRUE(band["converged"].get<bool>()) << scheme;
-        EXPECT_LT(passes_per_layer, std::string(scheme) == "step" ? 5.0 : 16.0) << scheme;
+        EXPECT_LT(passes_per_layer, std::string(scheme) == "step" ? 5.0 : 8.0) << scheme;
         // Stopping the layer iteration early would break the balance of absorbed and leaked light.
         EXPECT_LT(std::abs(band["energy_balance"].get<double>()), 1e-5) << scheme;
     }
