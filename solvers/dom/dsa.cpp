@@ -153,17 +153,18 @@ DiffusionSynthetic::~DiffusionSynthetic() = default;
 int DiffusionSynthetic::correct(const Field<double>& fluence_old, const Field<double>& flux_old,
                                 Field<double>& fluence, Field<double>& flux, bool with_current,
                                 const Field<double>* mirror_source) {
-    const Box& own = d_.local();
     if (change_.owned().empty()) {
-        change_ = Field<double>(own, 0, 1, 0.0);
-        flux_change_ = Field<double>(own, 0, 3, 0.0);
+        change_ = Field<double>(d_.local(), 0, 1, 0.0);
+        flux_change_ = Field<double>(d_.local(), 0, 3, 0.0);
     }
-    for_each_cell(own, [&](int i, int j, int k) {
+    // Only box_ matters: outside it every cell is empty, so the sources there are zero and the
+    // corrections stay zero (on the default cloud box_ is 36% of the cells).
+    for_each_cell(box_, [&](int i, int j, int k) {
         change_(i, j, k) = fluence(i, j, k) - fluence_old(i, j, k);
         for (int c = 0; c < 3; ++c) flux_change_(i, j, k, c) = flux(i, j, k, c) - flux_old(i, j, k, c);
     });
     const int iterations = solve(change_, with_current ? &flux_change_ : nullptr, mirror_source);
-    for_each_cell(own, [&](int i, int j, int k) {
+    for_each_cell(box_, [&](int i, int j, int k) {
         fluence(i, j, k) += delta_(i, j, k);
         for (int c = 0; c < 3; ++c) flux(i, j, k, c) += current_(i, j, k, c);
     });
@@ -171,9 +172,14 @@ int DiffusionSynthetic::correct(const Field<double>& fluence_old, const Field<do
 }
 
 int DiffusionSynthetic::solve(const Field<double>& r0, const Field<double>* r1, const Field<double>* mirror_source) {
-    delta_.fill(0.0);
-    current_.fill(0.0);
+    // delta_ and current_ are zero outside box_ from the constructor on; inside, every call
+    // writes them (zero where the cell is empty or the right-hand side vanishes).
     if (!solver_) return 0;
+    auto zero_box = [&](Field<double>& f) {
+        for_each_cell(box_, [&](int i, int j, int k) {
+            for (int c = 0; c < f.ncomp(); ++c) f(i, j, k, c) = 0.0;
+        });
+    };
     // Q0 = sigma_s R0 (+ dJ/h on high mirror faces), G = chi_1 sigma_s R1 / kappa_tr (physical
     // kappa_tr: dsa.h), filtered; b = Assembler::rhs (h² Q0 and G's face terms, 0 in empty
     // cells). Without the current: b = h² Q0 in full cells.
@@ -184,7 +190,7 @@ int DiffusionSynthetic::solve(const Field<double>& r0, const Field<double>* r1, 
     if (with_current) {
         Field<double>& Q0 = dp_.Q0[0];
         Field<double>& G = dp_.G[0];
-        for_each_cell(d_.local(), [&](int i, int j, int k) {
+        for_each_cell(box_, [&](int i, int j, int k) {  // zero outside box_ (empty cells)
             Q0(i, j, k) = p_.sigma_s(i, j, k) * r0(i, j, k) + (mirror_source ? (*mirror_source)(i, j, k) : 0.0);
             const double kt = p_.kappa_tr(i, j, k);
             const double s = kt > 0.0 ? chi1_ * p_.sigma_s(i, j, k) / kt : 0.0;
@@ -203,7 +209,11 @@ int DiffusionSynthetic::solve(const Field<double>& r0, const Field<double>* r1, 
         });
     }
     const double b_norm = global_norm(b, d_.comm());
-    if (b_norm == 0.0) return 0;
+    if (b_norm == 0.0) {
+        zero_box(delta_);
+        zero_box(current_);
+        return 0;
+    }
     std::vector<double> x(ncell, 0.0), rv;
     b_->set_box_values(box_, b);
     b_->assemble();
@@ -239,17 +249,19 @@ int DiffusionSynthetic::solve(const Field<double>& r0, const Field<double>* r1, 
     x_->get_box_values(box_, x);
     n = 0;
     for_each_cell(box_, [&](int i, int j, int k) {
-        if (full_[n]) delta_(i, j, k) = x[n];
+        delta_(i, j, k) = full_[n] ? x[n] : 0.0;
         ++n;
     });
     if (with_current) {  // δF = G - D ∇δ: the assembly's flux 4π (G - D ∇U) of U = δ, over 4π
         if (delta_halo_.owned().empty()) delta_halo_ = Field<double>(d_.local(), 1, 1, 0.0);
-        for_each_cell(d_.local(), [&](int i, int j, int k) { delta_halo_(i, j, k) = delta_(i, j, k); });
+        for_each_cell(box_, [&](int i, int j, int k) { delta_halo_(i, j, k) = delta_(i, j, k); });
         exchange_halo(delta_halo_, d_);
         for_each_cell(box_, [&](int i, int j, int k) {
             const Vec3 F = assembler_->flux(0, delta_halo_, i, j, k);
             for (int c = 0; c < 3; ++c) current_(i, j, k, c) = F[c] / (4.0 * std::numbers::pi);
         });
+    } else {
+        zero_box(current_);
     }
     return iterations;
 }

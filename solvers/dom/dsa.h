@@ -91,6 +91,9 @@ public:
     // r1 or when the phase function has no first moment, chi_1 = 0, which the sweep would not read).
     const Field<double>& last_correction() const { return delta_; }
     const Field<double>& last_current_correction() const { return current_; }
+    // The owned cells where the corrections can be nonzero (d.local() ∩ the solve region, the
+    // non-empty cells' bounding box plus a margin); they are zero everywhere else.
+    const Box& box() const { return box_; }
 
 private:
     void set_up_current_filter();                    // collective

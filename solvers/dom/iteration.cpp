@@ -107,7 +107,7 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
             const auto& delta = dsa->last_correction();
             const auto& current = dsa->last_current_correction();
             const bool first_moments = correct_current && ang.nmom >= 4;
-            for_each_cell(own, [&](int i, int j, int k) {
+            for_each_cell(dsa->box(), [&](int i, int j, int k) {
                 out.phi(i, j, k, 0) += y00 * delta(i, j, k);
                 if (!first_moments) return;
                 for (int m = 1; m <= 3; ++m) out.phi(i, j, k, m) += y1 * current(i, j, k, first_moment_axis(m));
