@@ -416,8 +416,7 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
                       (a == 0 ? &psi(edge, t, k) : &psi(t, edge, k)) + face_offset(a, nd));
             }
         };
-        std::optional<AndersonMixer> mixer;
-        if (diamond) mixer.emplace(MPI_COMM_SELF, kPeriodicAndersonDepth, 1.0);
+        std::optional<AndersonMixer> mixer;  // diamond, from the first pass that continues
         double scale = 0.0;
         for (int pass = 0;; ++pass) {
             sl.ghosts.clear();
@@ -432,17 +431,20 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
                 scale = std::max(scale, std::abs(sl.edges[v]));
             }
             const bool done = change <= periodic_tol_ * scale;
-            if (mixer && !done) sl.edges = mixer->next(sl.ghosts, sl.edges);  // now the next ghosts
+            if (!done && pass >= kMaxPeriodicPasses) {
+                periodic_failure_ = std::max(periodic_failure_, change / scale);
+                return;
+            }
+            if (diamond && !done) {
+                if (!mixer) mixer.emplace(MPI_COMM_SELF, kPeriodicAndersonDepth, 1.0);
+                sl.edges = mixer->next(sl.ghosts, sl.edges);  // now the next ghosts
+            }
             size_t v = 0;
             for_each_ghost([&](double* g, const double*) {
                 std::copy_n(sl.edges.data() + v, nd, g);
                 v += static_cast<size_t>(nd);
             });
             if (done) return;
-            if (pass >= kMaxPeriodicPasses) {
-                periodic_failure_ = std::max(periodic_failure_, change / scale);
-                return;
-            }
             ++timing_.periodic_passes;
             timing_.cell_directions += static_cast<std::int64_t>(own.size(0)) * own.size(1) * nd;
             for (int j = sl.ry.first; j != sl.ry.end; j += sl.ry.step)

@@ -38,10 +38,10 @@
 //   sources (src.amp != nullptr), so GMRES's scattering-only operator sweeps stay homogeneous.
 //   Likewise the diamond fix-up: it acts only on those sweeps (a physical radiance); GMRES's
 //   operator sweeps of Krylov vectors, which may be negative, stay linear.
-// - periodic x/y (Decomposition::periodic), by iterating the boundary planes layer by layer
-//   (under-relaxed by 1/2 for diamond, see sweep()): the engine sweeps
-// whole z layers, and after a layer is done its upwind ghost columns/rows are set to its
-// downwind edges and the layer is recomputed until they change by less than
+// - periodic x/y (Decomposition::periodic), by iterating the boundary planes layer by layer:
+// the engine sweeps whole z layers, and after a layer is done its upwind ghost columns/rows are
+// set to its downwind edges (step) or to an Anderson-accelerated step toward them (diamond, see
+// sweep()) and the layer is recomputed until they change by less than
 // `periodic_tolerance` (relative to the layer's largest edge value, max norm). On sweeps with
 // the external sources each octant's ghost planes start from where its previous such sweep
 // left them (kept per octant), so once source iteration or DSA settles a layer needs one or two
