@@ -41,7 +41,7 @@ std::unique_ptr<diffusion::hypre::Matrix> assemble_matrix(MPI_Comm comm, const d
 
 }  // namespace
 
-DiffusionSynthetic::DiffusionSynthetic(const Decomposition& d, const BandProblem& p, double tolerance,
+DiffusionSynthetic::DiffusionSynthetic(const Decomposition& d, const BandProblem& p, LinearSolve solve,
                                        const std::array<bool, 6>& reflective, bool lagged_sources)
     : d_(d), p_(p) {
     const Box& own = d.local();
@@ -63,8 +63,9 @@ DiffusionSynthetic::DiffusionSynthetic(const Decomposition& d, const BandProblem
     dp_.Q0.emplace_back(own, 0, 1, 0.0);
     dp_.G.emplace_back(own, 1, 3, 0.0);
     chi1_ = p.phase.chi.size() > 1 ? p.phase.chi[1] : 0.0;
-    opt_.solver = "pfmg-pcg";
-    opt_.tolerance = tolerance;
+    v_cycles_ = solve.v_cycles;
+    opt_.solver = v_cycles_ > 0 ? "pfmg-cycle" : "pfmg-pcg";
+    opt_.tolerance = solve.tolerance;
     opt_.max_iterations = 200;
     region_ = diffusion::find_solve_region(d, dp_, opt_.margin);
     delta_ = Field<double>(own, 0, 1, 0.0);
@@ -92,8 +93,12 @@ DiffusionSynthetic::DiffusionSynthetic(const Decomposition& d, const BandProblem
     b_->assemble();
     x_->assemble();
     solver_ = std::make_unique<hy::Solver>(d.comm(), opt_.solver, period[0] + period[1] + period[2] > 0);
-    solver_->set_max_iterations(opt_.max_iterations);  // the largest limit, before setup
-    solver_->set_tolerance(opt_.tolerance);
+    if (v_cycles_ > 0) {
+        solver_->set_max_iterations(v_cycles_);  // "pfmg-cycle": tolerance 0, zero initial guess
+    } else {
+        solver_->set_max_iterations(opt_.max_iterations);  // the largest limit, before setup
+        solver_->set_tolerance(opt_.tolerance);
+    }
     solver_->setup(*A_, *b_, *x_);
     period_ = period;  // the current's filter is set up at its first use (set_up_current_filter)
 }
@@ -171,6 +176,50 @@ int DiffusionSynthetic::correct(const Field<double>& fluence_old, const Field<do
     return iterations;
 }
 
+// x = A^{-1} b on box_ (b_norm = ||b||, global): PFMG-PCG from zero, restarted from the current x
+// while the TRUE residual ||b - A x|| / ||b|| is above the tolerance (PCG's recursive residual
+// can understate it), as solve_with_hypre does; or v_cycles_ V-cycles from zero.
+int DiffusionSynthetic::solve_system(std::vector<double>& b, double b_norm, std::vector<double>& x) {
+    x.assign(b.size(), 0.0);
+    b_->set_box_values(box_, b);
+    b_->assemble();
+    x_->set_box_values(box_, x);
+    x_->assemble();
+    if (v_cycles_ > 0) {
+        solver_->solve(*A_, *b_, *x_);
+        x_->get_box_values(box_, x);
+        return v_cycles_;
+    }
+    std::vector<double> rv;
+    int iterations = 0, left = opt_.max_iterations;
+    double tol_round = opt_.tolerance, true_res = 0.0;
+    bool ok = false;
+    for (int round = 0; round < 6 && left > 0; ++round) {
+        solver_->set_tolerance(tol_round);
+        solver_->set_max_iterations(left);
+        solver_->solve(*A_, *b_, *x_);
+        const int its = solver_->iterations();
+        iterations += its;
+        left -= its;
+        r_->set_box_values(box_, b);
+        r_->assemble();
+        diffusion::hypre::matvec(-1.0, *A_, *x_, 1.0, *r_);
+        r_->get_box_values(box_, rv);
+        true_res = global_norm(rv, d_.comm()) / b_norm;
+        if (true_res <= opt_.tolerance) {
+            ok = true;
+            break;
+        }
+        if (!std::isfinite(true_res)) break;
+        tol_round *= 0.5 * opt_.tolerance / true_res;
+    }
+    if (!ok)  // true_res is global: every rank throws together
+        throw Error(fmt::format("dom: DSA diffusion solve did not reach {:.1e} in {} iterations (true residual {:.3e})",
+                                opt_.tolerance, iterations, true_res));
+    x_->get_box_values(box_, x);
+    return iterations;
+}
+
 int DiffusionSynthetic::solve(const Field<double>& r0, const Field<double>* r1, const Field<double>* mirror_source) {
     // delta_ and current_ are zero outside box_ from the constructor on; inside, every call
     // writes them (zero where the cell is empty or the right-hand side vanishes).
@@ -214,39 +263,8 @@ int DiffusionSynthetic::solve(const Field<double>& r0, const Field<double>* r1, 
         zero_box(current_);
         return 0;
     }
-    std::vector<double> x(ncell, 0.0), rv;
-    b_->set_box_values(box_, b);
-    b_->assemble();
-    x_->set_box_values(box_, x);
-    x_->assemble();
-    // Solve; restart from the current x while the TRUE residual ||b - A x|| / ||b|| is above
-    // the tolerance (PCG's recursive residual can understate it), as solve_with_hypre does.
-    int iterations = 0, left = opt_.max_iterations;
-    double tol_round = opt_.tolerance, true_res = 0.0;
-    bool ok = false;
-    for (int round = 0; round < 6 && left > 0; ++round) {
-        solver_->set_tolerance(tol_round);
-        solver_->set_max_iterations(left);
-        solver_->solve(*A_, *b_, *x_);
-        const int its = solver_->iterations();
-        iterations += its;
-        left -= its;
-        r_->set_box_values(box_, b);
-        r_->assemble();
-        diffusion::hypre::matvec(-1.0, *A_, *x_, 1.0, *r_);
-        r_->get_box_values(box_, rv);
-        true_res = global_norm(rv, d_.comm()) / b_norm;
-        if (true_res <= opt_.tolerance) {
-            ok = true;
-            break;
-        }
-        if (!std::isfinite(true_res)) break;
-        tol_round *= 0.5 * opt_.tolerance / true_res;
-    }
-    if (!ok)  // true_res is global: every rank throws together
-        throw Error(fmt::format("dom: DSA diffusion solve did not reach {:.1e} in {} iterations (true residual {:.3e})",
-                                opt_.tolerance, iterations, true_res));
-    x_->get_box_values(box_, x);
+    std::vector<double> x;
+    const int iterations = solve_system(b, b_norm, x);
     n = 0;
     for_each_cell(box_, [&](int i, int j, int k) {
         delta_(i, j, k) = full_[n] ? x[n] : 0.0;

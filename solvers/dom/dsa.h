@@ -65,10 +65,15 @@ namespace nimbus::dom {
 
 class DiffusionSynthetic {
 public:
+    // How each correction's diffusion system is solved.
+    struct LinearSolve {
+        double tolerance = 0.1;  // PFMG-PCG to this relative residual (checked on the true residual)
+        int v_cycles = 0;        // > 0: instead, this many PFMG V-cycles from zero, a fixed linear map
+    };
     // Collective. p must outlive this object. reflective: the sweep's mirror faces
     // (SweepBoundary::reflective, x-, x+, y-, y+, z-, z+); lagged_sources: correct() will get the
     // high mirror faces' current changes (else those faces keep Marshak).
-    DiffusionSynthetic(const Decomposition& d, const BandProblem& p, double tolerance,
+    DiffusionSynthetic(const Decomposition& d, const BandProblem& p, LinearSolve solve,
                        const std::array<bool, 6>& reflective = {}, bool lagged_sources = false);
     ~DiffusionSynthetic();
     DiffusionSynthetic(const DiffusionSynthetic&) = delete;
@@ -76,8 +81,8 @@ public:
     // Collective. Adds δ to fluence and δF to flux (owned cells) for the sweep's changes
     // R0 = fluence - fluence_old, R1 = flux - flux_old; with_current false: the isotropic
     // correction alone (δF = 0, the cost of plain DSA). Returns the linear solver's iterations (0
-    // when the right-hand side vanishes everywhere). Throws Error (on every rank) when the
-    // true relative residual stays above the tolerance.
+    // when the right-hand side vanishes everywhere; the V-cycles with LinearSolve::v_cycles). Throws
+    // Error (on every rank) when the true relative residual stays above the tolerance.
     // mirror_source: dJ / h per boundary cell of the high mirror faces (TransportSweeper::
     // for_each_lagged_mirror_change), owned cells, or null.
     int correct(const Field<double>& fluence_old, const Field<double>& flux_old, Field<double>& fluence,
@@ -85,7 +90,7 @@ public:
     // Collective. δ and δF for a fluence change r0 (W/m², owned cells, 1 component) and a flux
     // change r1 (3 components, or null: the isotropic correction alone, δF = 0), into last_correction() and
     // last_current_correction(). Same return value and errors as correct(). A linear map of
-    // (r0, r1) up to the solver tolerance (PCG from a zero initial guess).
+    // (r0, r1) up to the solver tolerance (PCG from a zero initial guess), exactly with V-cycles.
     int solve(const Field<double>& r0, const Field<double>* r1, const Field<double>* mirror_source = nullptr);
     // The corrections of the last call (owned cells, W/m²): δ, and δF (3 components; zero without
     // r1 or when the phase function has no first moment, chi_1 = 0, which the sweep would not read).
@@ -96,6 +101,7 @@ public:
     const Box& box() const { return box_; }
 
 private:
+    int solve_system(std::vector<double>& b, double b_norm, std::vector<double>& x);  // collective (b: hypre takes it non-const)
     void set_up_current_filter();                    // collective
     void filter_current_source(Field<double>& G);     // collective
     // The current's source is filtered (above) with width nu = kCurrentFilterWidth / kappa*.
@@ -105,6 +111,7 @@ private:
     diffusion::DiffusionProblem dp_;
     diffusion::SolveRegion region_;
     DiffusionOptions opt_;
+    int v_cycles_ = 0;  // LinearSolve::v_cycles
     double kappa_floor_ = 0.0;
     double chi1_ = 0.0;      // the first Legendre moment of the (scaled) phase function
     Field<double> delta_;

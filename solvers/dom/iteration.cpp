@@ -85,7 +85,8 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
     std::unique_ptr<DiffusionSynthetic> dsa;
     if (method == "dsa") {
         ScopedTimer t(report, "dsa_setup");
-        dsa = std::make_unique<DiffusionSynthetic>(d, p, kDsaTolerance, sweeper.boundary().reflective, true);
+        dsa = std::make_unique<DiffusionSynthetic>(d, p, DiffusionSynthetic::LinearSolve{kDsaTolerance, 0},
+                                                   sweeper.boundary().reflective, true);
     }
     const double y00 = 1.0 / std::sqrt(4.0 * std::acos(-1.0));
     const double y1 = first_moment_scale();

@@ -76,8 +76,8 @@ CubeRun thick_cube(double albedo, const std::string& method, int max_iterations)
 
 void print_cube_run(double albedo, const char* method, const CubeRun& r) {
     if (test::world_rank() == 0)
-        std::printf("tau 100 cube, albedo %.3f, %-11s: %4d iterations%s, last change %.2e, %5d PFMG-PCG "
-                    "iterations, %.3f s\n", albedo, method, r.iterations, r.converged ? "" : " (capped)",
+        std::printf("tau 100 cube, albedo %.3f, %-11s: %4d iterations%s, last change %.2e, %5d DSA linear "
+                    "iterations (PFMG-PCG; GMRES: V-cycles), %.3f s\n", albedo, method, r.iterations, r.converged ? "" : " (capped)",
                     r.history.empty() ? 0.0 : r.history.back(), r.dsa_linear_iterations, r.seconds);
 }
 
