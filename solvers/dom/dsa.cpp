@@ -163,7 +163,7 @@ int DiffusionSynthetic::correct(const Field<double>& fluence_old, const Field<do
         flux_change_ = Field<double>(d_.local(), 0, 3, 0.0);
     }
     // Only box_ matters: outside it every cell is empty, so the sources there are zero and the
-    // corrections stay zero (on the default cloud box_ is 36% of the cells).
+    // corrections stay zero (on the default cloud box_, with its margin, is 44% of the cells).
     for_each_cell(box_, [&](int i, int j, int k) {
         change_(i, j, k) = fluence(i, j, k) - fluence_old(i, j, k);
         for (int c = 0; c < 3; ++c) flux_change_(i, j, k, c) = flux(i, j, k, c) - flux_old(i, j, k, c);
