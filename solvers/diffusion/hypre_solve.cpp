@@ -12,26 +12,6 @@
 namespace nimbus::diffusion {
 namespace {
 
-double global_norm(const std::vector<double>& v, MPI_Comm comm) {
-    double s = 0.0, g = 0.0;
-    for (double a : v) s += a * a;
-    MPI_Allreduce(&s, &g, 1, MPI_DOUBLE, MPI_SUM, comm);
-    return std::sqrt(g);
-}
-
-// ||b - A x|| / ||b||, computed with the matrix itself (hypre's PCG residual is recursive and
-// can understate the true one).
-double true_relative_residual(MPI_Comm comm, const hypre::Matrix& A, const hypre::Vector& x,
-                              std::vector<double>& b_values, double b_norm, const Box& box,
-                              hypre::Vector& r) {
-    r.set_box_values(box, b_values);
-    r.assemble();
-    hypre::matvec(-1.0, A, x, 1.0, r);
-    std::vector<double> rv;
-    r.get_box_values(box, rv);
-    return global_norm(rv, comm) / b_norm;
-}
-
 }  // namespace
 
 std::string format_history(const std::vector<std::pair<int, double>>& history) {
@@ -80,7 +60,7 @@ LinearSolveOutput solve_with_hypre(const Decomposition& d, const Assembler& asse
         for_each_cell(box, [&](int i, int j, int k) {
             b_values[r][n++] = assembler.rhs(static_cast<int>(r), i, j, k);
         });
-        b_norm[r] = global_norm(b_values[r], comm);
+        b_norm[r] = hypre::global_norm(b_values[r], comm);
     }
     hypre::Vector b(comm, grid), x(comm, grid), res(comm, grid);
     b.set_box_values(box, b_values[0]);
@@ -120,37 +100,22 @@ LinearSolveOutput solve_with_hypre(const Decomposition& d, const Assembler& asse
         std::vector<double> zero(ncell, 0.0);
         x.set_box_values(box, zero);
         x.assemble();
-        double tol_round = opt.tolerance;
-        int left = opt.max_iterations;
-        std::vector<std::pair<int, double>> rounds;
-        bool ok = false;
-        for (int round = 0; round < 6 && left > 0; ++round) {
-            solver.set_tolerance(tol_round);
-            solver.set_max_iterations(left);
-            solver.solve(A, b, x);
-            const int its = solver.iterations();
-            st.iterations += its;
-            left -= its;
-            st.reported_residual = solver.final_relative_residual();
-            st.true_residual = true_relative_residual(comm, A, x, b_values[r], b_norm[r], box, res);
-            rounds.emplace_back(st.iterations, st.true_residual);
-            log::debug("diffusion: rhs {} round {}: {} {} iterations, relative residual {:.3e} (true {:.3e})",
-                       r, round, its, opt.solver, st.reported_residual, st.true_residual);
-            if (st.true_residual <= opt.tolerance) {
-                ok = true;
-                break;
-            }
-            if (!std::isfinite(st.true_residual)) break;
-            st.restarts = round + 1;
-            // The recursive residual drifted from the true one: aim lower by the observed ratio.
-            tol_round *= 0.5 * opt.tolerance / st.true_residual;
-        }
+        const hypre::TrueResidualSolve sol = hypre::solve_to_true_residual(
+            comm, solver, A, b, x, b_values[r], b_norm[r], box, res, opt.tolerance, opt.max_iterations);
+        st.iterations = sol.iterations;
+        st.restarts = sol.restarts;
+        st.reported_residual = sol.reported_residual;
+        st.true_residual = sol.true_residual;
+        const auto& rounds = sol.rounds;
+        log::debug("diffusion: rhs {}: {} {} iterations, relative residual {:.3e} (true {:.3e}), {} restarts", r,
+                   sol.iterations, opt.solver, sol.reported_residual, sol.true_residual, sol.restarts);
         timer.reset();
         st.solve_seconds = wall_time() - t0;
-        if (!ok) {
+        if (!sol.converged) {
             const std::string why =
                 !std::isfinite(st.true_residual) ? "the residual is not finite"
-                : left <= 0 ? fmt::format("the limit of {} iterations was reached", opt.max_iterations)
+                : sol.iterations >= opt.max_iterations
+                    ? fmt::format("the limit of {} iterations was reached", opt.max_iterations)
                             : fmt::format("{} restarts from the last iterate did not bring the true residual down",
                                           rounds.size() - 1);
             // Residual history from zero at 1, 2, 4, ... iterations (true residuals).
@@ -161,8 +126,8 @@ LinearSolveOutput solve_with_hypre(const Decomposition& d, const Assembler& asse
                 x.assemble();
                 solver.set_max_iterations(its);
                 solver.solve(A, b, x);
-                history.emplace_back(its, true_relative_residual(comm, A, x, b_values[r],
-                                                                 b_norm[r], box, res));
+                history.emplace_back(its, hypre::true_relative_residual(comm, A, x, b_values[r],
+                                                                        b_norm[r], box, res));
                 if (its >= opt.max_iterations) break;
             }
             throw Error(fmt::format(

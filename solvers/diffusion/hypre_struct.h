@@ -16,6 +16,7 @@
 #include <HYPRE_struct_ls.h>
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "src/core/box.h"
@@ -121,5 +122,28 @@ private:
     HYPRE_StructSolver solver_ = nullptr;    // PFMG, SMG or PCG
     HYPRE_StructSolver precond_ = nullptr;   // PFMG or SMG inside PCG
 };
+
+// ||v||_2 over all ranks (collective).
+double global_norm(const std::vector<double>& v, MPI_Comm comm);
+
+// ||b - A x|| / ||b|| with the matrix itself (hypre's PCG residual is recursive and can
+// understate the true one). b_values: b on box (x fastest); r: scratch. Collective.
+double true_relative_residual(MPI_Comm comm, const Matrix& A, const Vector& x, std::vector<double>& b_values,
+                              double b_norm, const Box& box, Vector& r);
+
+// One solve to a TRUE relative residual: the solver runs from x to a tolerance, the true
+// residual is checked, and while it is above `tolerance` the solver restarts from its last
+// iterate aiming lower by the observed ratio (at most 6 rounds, max_iterations in all).
+struct TrueResidualSolve {
+    bool converged = false;
+    int iterations = 0;
+    int restarts = 0;
+    double reported_residual = 0.0;  // the solver's own, last round
+    double true_residual = 0.0;
+    std::vector<std::pair<int, double>> rounds;  // iterations so far, true residual, per round
+};
+TrueResidualSolve solve_to_true_residual(MPI_Comm comm, Solver& solver, const Matrix& A, const Vector& b, Vector& x,
+                                         std::vector<double>& b_values, double b_norm, const Box& box, Vector& r,
+                                         double tolerance, int max_iterations);
 
 }  // namespace nimbus::diffusion::hypre

@@ -12,13 +12,6 @@
 namespace nimbus::dom {
 namespace {
 
-double global_norm(const std::vector<double>& v, MPI_Comm comm) {
-    double s = 0.0;
-    for (double a : v) s += a * a;
-    MPI_Allreduce(MPI_IN_PLACE, &s, 1, MPI_DOUBLE, MPI_SUM, comm);
-    return std::sqrt(s);
-}
-
 // The 7-point matrix of a's rows on box (symmetric storage), assembled.
 std::unique_ptr<diffusion::hypre::Matrix> assemble_matrix(MPI_Comm comm, const diffusion::Assembler& a, const Box& box,
                                                           const diffusion::hypre::Grid& grid,
@@ -176,9 +169,8 @@ int DiffusionSynthetic::correct(const Field<double>& fluence_old, const Field<do
     return iterations;
 }
 
-// x = A^{-1} b on box_ (b_norm = ||b||, global): PFMG-PCG from zero, restarted from the current x
-// while the TRUE residual ||b - A x|| / ||b|| is above the tolerance (PCG's recursive residual
-// can understate it), as solve_with_hypre does; or v_cycles_ V-cycles from zero.
+// x = A^{-1} b on box_ (b_norm = ||b||, global): PFMG-PCG from zero to the TRUE relative
+// residual (hypre::solve_to_true_residual, as the diffusion model), or v_cycles_ V-cycles from zero.
 int DiffusionSynthetic::solve_system(std::vector<double>& b, double b_norm, std::vector<double>& x) {
     x.assign(b.size(), 0.0);
     b_->set_box_values(box_, b);
@@ -190,34 +182,13 @@ int DiffusionSynthetic::solve_system(std::vector<double>& b, double b_norm, std:
         x_->get_box_values(box_, x);
         return v_cycles_;
     }
-    std::vector<double> rv;
-    int iterations = 0, left = opt_.max_iterations;
-    double tol_round = opt_.tolerance, true_res = 0.0;
-    bool ok = false;
-    for (int round = 0; round < 6 && left > 0; ++round) {
-        solver_->set_tolerance(tol_round);
-        solver_->set_max_iterations(left);
-        solver_->solve(*A_, *b_, *x_);
-        const int its = solver_->iterations();
-        iterations += its;
-        left -= its;
-        r_->set_box_values(box_, b);
-        r_->assemble();
-        diffusion::hypre::matvec(-1.0, *A_, *x_, 1.0, *r_);
-        r_->get_box_values(box_, rv);
-        true_res = global_norm(rv, d_.comm()) / b_norm;
-        if (true_res <= opt_.tolerance) {
-            ok = true;
-            break;
-        }
-        if (!std::isfinite(true_res)) break;
-        tol_round *= 0.5 * opt_.tolerance / true_res;
-    }
-    if (!ok)  // true_res is global: every rank throws together
+    const diffusion::hypre::TrueResidualSolve sol = diffusion::hypre::solve_to_true_residual(
+        d_.comm(), *solver_, *A_, *b_, *x_, b, b_norm, box_, *r_, opt_.tolerance, opt_.max_iterations);
+    if (!sol.converged)  // the true residual is global: every rank throws together
         throw Error(fmt::format("dom: DSA diffusion solve did not reach {:.1e} in {} iterations (true residual {:.3e})",
-                                opt_.tolerance, iterations, true_res));
+                                opt_.tolerance, sol.iterations, sol.true_residual));
     x_->get_box_values(box_, x);
-    return iterations;
+    return sol.iterations;
 }
 
 int DiffusionSynthetic::solve(const Field<double>& r0, const Field<double>* r1, const Field<double>* mirror_source) {
@@ -257,7 +228,7 @@ int DiffusionSynthetic::solve(const Field<double>& r0, const Field<double>* r1, 
             ++n;
         });
     }
-    const double b_norm = global_norm(b, d_.comm());
+    const double b_norm = diffusion::hypre::global_norm(b, d_.comm());
     if (b_norm == 0.0) {
         zero_box(delta_);
         zero_box(current_);

@@ -46,8 +46,8 @@ constexpr double kCurrentFromRatio = 0.2;
 // every DOM test and every scene of the study (2 ranks, step, exact light pass) took the same
 // outer iterations (the tau-75 cube one fewer), with 2-3.5x fewer PFMG-PCG iterations (default
 // cloud 43 + 45 -> 20 + 20, duct 42 -> 12, smoke 18 -> 8 per band) and fluence_diffuse within
-// 6e-7 (rel L2) of the 1e-4 answer. GMRES's preconditioner keeps a tight tolerance (gmres.cpp):
-// it must be the same linear map at every Krylov step.
+// 6e-7 (rel L2) of the 1e-4 answer. GMRES's preconditioner is instead a fixed number of
+// V-cycles (gmres.cpp): it must be the same linear map at every Krylov step.
 constexpr double kDsaTolerance = 0.1;
 
 }  // namespace
