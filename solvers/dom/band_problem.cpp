@@ -39,6 +39,11 @@ LightTransport without_sky(const LightTransport& lt) {
     return r;
 }
 
+SourceRows source_rows(const BandProblem& p) {
+    if (p.nl > 0) return SourceRows(p.kappa.owned(), {&p.sigma_s, &p.emission, &p.amp});
+    return SourceRows(p.kappa.owned(), {&p.sigma_s, &p.emission});
+}
+
 void add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, const LightTransport& lt,
                        const BandOptics& o, const std::vector<double>& E0, const AngularSet& ang) {
     std::vector<int> lit;  // the lights of lt this problem carries

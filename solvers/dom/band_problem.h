@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "solvers/dom/angular_set.h"
+#include "solvers/dom/transport_sweep.h"
 #include "src/core/field.h"
 #include "src/model/model.h"
 #include "src/physics/angular_moments.h"
@@ -42,6 +43,10 @@ struct BandProblem {
     Field<double> forward_fluence;       // Σ_l E0_l (T*_l - T_l) (W/m²)
     Field<double> forward_flux;          // Σ_l E0_l (T*_l - T_l) w_l, 3 components
 };
+
+// Where p's sweep source can be nonzero (SourceRows, transport_sweep.h): the cells that scatter,
+// emit or carry a first-collision amplitude.
+SourceRows source_rows(const BandProblem& p);
 
 // A problem with optics o (kappa per cell = rho o.sigma_t) and no sources yet (emission 0, nl = 0).
 BandProblem make_band_optics(const Medium& m, const BandOptics& o, const Box& own, const AngularSet& ang,

@@ -15,8 +15,9 @@
 // Σ_n w_n Ω_n I_n + E0 (T* - T) w (W/m²), owned + 1 ghost, halo-exchanged. Report
 // values()["dom"]: quadrature, iterations and residual history per band, grind time
 // (ns per cell·direction·band per iteration: total iteration time / (cells · directions ·
-// iterations), this rank's cells) and the sweep-only grind time, pipeline efficiency
-// (1 - wait/sweep time), leakage per face and the energy balance, memory per cell.
+// iterations), this rank's cells) and the sweep-only grind time, the seconds in the sweep
+// engine and in the moment operators (max over ranks), pipeline efficiency (1 - wait/sweep
+// time), leakage per face and the energy balance, memory per cell.
 // Collective; throws Error on every rank when an iteration does not converge.
 #pragma once
 

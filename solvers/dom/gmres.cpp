@@ -51,9 +51,10 @@ PetscErrorCode shell_mult(Mat A, Vec x, Vec y) {
     const int nmom = c->ang->nmom;
     const size_t ncell = static_cast<size_t>(c->p->kappa.owned().cells());
     const double* ss = c->p->sigma_s.data();
-    double* s = c->s.data();
-    for (size_t q = 0; q < ncell; ++q)
+    double* s = c->s.data();  // 0 outside the source rows, where sigma_s is 0
+    c->scatter_only.rows->for_each_cell([&](size_t q) {
         for (int k = 0; k < nmom; ++k) s[q * nmom + k] = ss[q] * c->chi[static_cast<size_t>(k)] * xv[q * nmom + k];
+    });
     if (!c->failure.empty()) {
         PetscCall(VecRestoreArrayRead(x, &xv));
         PetscCall(VecCopy(x, y));
@@ -80,6 +81,7 @@ PetscErrorCode shell_mult(Mat A, Vec x, Vec y) {
 // What the preconditioner and the convergence test need; owned by gmres_band's frame.
 struct KrylovContext {
     const Box* own = nullptr;
+    const SourceRows* rows = nullptr;
     int nmom = 0;
     DiffusionSynthetic* dsa = nullptr;  // null: no preconditioner
     Report* report = nullptr;
@@ -129,11 +131,13 @@ PetscErrorCode dsa_apply(PC pc, Vec x, Vec y) {
     const double* dF = current.data();
     PetscScalar* yv = nullptr;
     PetscCall(VecGetArray(y, &yv));
-    for (size_t q = 0; q < ncell; ++q) {
+    // Only inside the source rows: outside them the sweep leaves phi 0 (K x = 0 there), so x
+    // stays 0 there and the Krylov space carries none of those cells.
+    c->rows->for_each_cell([&](size_t q) {
         yv[q * nmom] += delta[q] / sqrt4pi;
-        if (!first_moments) continue;
+        if (!first_moments) return;
         for (int m = 1; m <= 3; ++m) yv[q * nmom + m] += y1 * dF[3 * q + first_moment_axis(m)];
-    }
+    });
     PetscCall(VecRestoreArray(y, &yv));
     return 0;
 }
@@ -185,9 +189,11 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
         const int l = ang.degree[static_cast<size_t>(k)];
         c.chi.push_back(l < static_cast<int>(p.phase.chi.size()) ? p.phase.chi[static_cast<size_t>(l)] : 0.0);
     }
+    const SourceRows rows = source_rows(p);
     c.scatter_only.kappa = &p.kappa;
     c.scatter_only.moments = &c.s;
     c.scatter_only.nl = 0;
+    c.scatter_only.rows = &rows;
 
     // b: one sweep of the external source (lights + emission), scattering off.
     SweepSource external;
@@ -196,6 +202,7 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     external.amp = &p.amp;
     external.nl = p.nl;
     external.light_phase = p.light_phase;
+    external.rows = &rows;
     const double y0inv = std::sqrt(4.0 * std::acos(-1.0));
     c.s.fill(0.0);
     for (std::ptrdiff_t q = 0; q < own.cells(); ++q) c.s.data()[q * nmom] = y0inv * p.emission.data()[q];
@@ -225,6 +232,7 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     KrylovContext kc;
     kc.sweep_failure = &c.failure;
     kc.own = &own;
+    kc.rows = &rows;
     kc.nmom = nmom;
     kc.report = &report;
     kc.tolerance = tolerance;
@@ -278,12 +286,11 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     if (!c.failure.empty()) throw Error(c.failure);
     if (!kc.failure.empty()) throw Error(kc.failure);
     check(solve_err, "KSPSolve");
-    const size_t ncell = static_cast<size_t>(own.cells());
-    for (size_t q = 0; q < ncell; ++q) {
+    rows.for_each_cell([&](size_t q) {
         for (int k = 0; k < nmom; ++k)
             c.s.data()[q * nmom + k] = p.sigma_s.data()[q] * c.chi[static_cast<size_t>(k)] * phi.data()[q * nmom + k];
         c.s.data()[q * nmom] += y0inv * p.emission.data()[q];
-    }
+    });
     sweeper.sweep(external, out);
     res.seconds = MPI_Wtime() - t0;
     return res;

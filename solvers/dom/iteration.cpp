@@ -14,12 +14,12 @@
 namespace nimbus::dom {
 namespace {
 
-// Scattering (and emission) source moments s_k = sigma_s chi_l(k) phi_k (+ sqrt(4π) q at k=0).
-void make_source_moments(const BandProblem& p, const AngularSet& ang, const Field<double>& phi,
-                         Field<double>& s) {
+// Scattering (and emission) source moments s_k = sigma_s chi_l(k) phi_k (+ sqrt(4π) q at k=0),
+// inside the source rows (s stays 0 outside them: sigma_s and q are 0 there).
+void make_source_moments(const BandProblem& p, const AngularSet& ang, const SourceRows& rows,
+                         const Field<double>& phi, Field<double>& s) {
     const int nmom = ang.nmom;
     const double y0inv = std::sqrt(4.0 * std::acos(-1.0));  // 1 / Y_00
-    const size_t ncell = static_cast<size_t>(p.kappa.owned().cells());
     std::vector<double> chi(static_cast<size_t>(nmom));
     for (int k = 0; k < nmom; ++k) {
         const int l = ang.degree[static_cast<size_t>(k)];
@@ -29,10 +29,10 @@ void make_source_moments(const BandProblem& p, const AngularSet& ang, const Fiel
     const double* q = p.emission.data();
     const double* ph = phi.data();
     double* out = s.data();
-    for (size_t c = 0; c < ncell; ++c) {
+    rows.for_each_cell([&](size_t c) {
         for (int k = 0; k < nmom; ++k) out[c * nmom + k] = ss[c] * chi[static_cast<size_t>(k)] * ph[c * nmom + k];
         out[c * nmom] += y0inv * q[c];
-    }
+    });
 }
 
 // The isotropic DSA's own rate is about 0.22 per iteration (isotropic scattering, infinite
@@ -94,14 +94,16 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
     Field<double> fluence_old(own, 0, 1, 0.0), flux_old(own, 0, 3, 0.0);
     Field<double> mirror_source(own, 0, 1, 0.0);  // DSA's boundary source on high mirror faces
     bool correct_current = false;  // DSA's current correction, switched on below
+    const SourceRows rows = source_rows(p);  // phi is computed, and corrected, on these only
     SweepSource src;
     src.kappa = &p.kappa;
     src.moments = &s;
     src.amp = &p.amp;
     src.nl = p.nl;
     src.light_phase = p.light_phase;
+    src.rows = &rows;
     for (int it = 1; it <= max_iterations; ++it) {
-        make_source_moments(p, ang, phi, s);
+        make_source_moments(p, ang, rows, phi, s);
         sweeper.sweep(src, out);
         if (dsa) {
             {
@@ -119,6 +121,7 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
             const auto& current = dsa->last_current_correction();
             const bool first_moments = correct_current && ang.nmom >= 4;
             for_each_cell(dsa->box(), [&](int i, int j, int k) {
+                if (!rows.contains(i, j, k)) return;
                 out.phi(i, j, k, 0) += y00 * delta(i, j, k);
                 if (!first_moments) return;
                 for (int m = 1; m <= 3; ++m) out.phi(i, j, k, m) += y1 * current(i, j, k, first_moment_axis(m));

@@ -82,6 +82,7 @@ inline OctantSourceOp make_octant_source_op(int nd, int nl, int nmom, const doub
 }
 
 // Directions -> moments (+ fluence, flux) of one octant. wY: nmom x nd; weight, dir: nd each.
+// nmom = 0 (wY unused): the fluence and flux alone, where no moments are needed.
 struct OctantMomentOp {
     int nd = 0, nmom = 0;
     int mv = 0;                  // full 4-wide moment vectors: nmom / 4
@@ -257,7 +258,7 @@ NIMBUS_DOM_AVX2 void moments_avx2(const OctantMomentOp& op, int ncell, const dou
                                      fluence + c, flux + 3 * c);
 }
 
-// Compile-time sizes the avx2 path covers (nd <= 36; nmom = (L+1)² <= 49), beyond them: portable.
+// Compile-time sizes the avx2 path covers (nd <= 36; nmom = 0 or (L+1)² <= 49), beyond them: portable.
 inline bool source_dispatch_avx2(const OctantSourceOp& op, std::ptrdiff_t ncell, const double* A, const double* s,
                                  double* S) {
     switch (op.nv) {
@@ -277,6 +278,7 @@ inline bool source_dispatch_avx2(const OctantSourceOp& op, std::ptrdiff_t ncell,
 inline bool moments_dispatch_avx2(const OctantMomentOp& op, int ncell, const double* psi, std::ptrdiff_t ps,
                                   double* phi, double* fluence, double* flux) {
     switch (op.nmom) {
+        case 0: moments_avx2<0, 0>(op, ncell, psi, ps, phi, fluence, flux); return true;
         case 1: moments_avx2<0, 1>(op, ncell, psi, ps, phi, fluence, flux); return true;
         case 4: moments_avx2<1, 0>(op, ncell, psi, ps, phi, fluence, flux); return true;
         case 9: moments_avx2<2, 1>(op, ncell, psi, ps, phi, fluence, flux); return true;

@@ -60,7 +60,7 @@ struct OctantSlot {
     int o = 0, nd = 0;
     sweep::Octant octant;
     Field<double>* psi = nullptr;
-    std::vector<double>* source = nullptr;  // cells x nd (+3, moment_kernels.h)
+    SourceBuffer* source = nullptr;
     const double *cx = nullptr, *cy = nullptr, *cz = nullptr, *cs = nullptr;
     std::ptrdiff_t ox = 0, oy = 0, oz = 0;  // upwind neighbour offsets in psi
     int fx = 0, fy = 0, fz = 0;             // face blocks (diamond)
@@ -70,25 +70,57 @@ struct OctantSlot {
     std::int64_t fixups = 0;
 };
 
-// Each octant's source for every cell (Kripke's LPlusTimes, moment_kernels.h), in chunks of
-// cells with all octants of the group per chunk, so the chunk's source moments are read from
-// memory once. +3: the vector stores of a chunk's last cell may run 3 values past it.
-void group_sources(std::ptrdiff_t ncell, const SweepSource& src, const AngularSet& ang, std::vector<OctantSlot>& slots) {
+// Each octant's source (Kripke's LPlusTimes, moment_kernels.h) on the source rows' spans, in
+// chunks of cells with all octants of the group per chunk, so the chunk's source moments are
+// read from memory once; zero elsewhere (written only when the buffer's last rows differ:
+// SourceBuffer). Cells are written in increasing order: the vector stores of a chunk's last cell
+// may run 3 values past it (zeros, moment_kernels.h), into the next cell, written after it (+3
+// at the end of the array).
+void group_sources(const Box& own, const SweepSource& src, const AngularSet& ang, std::vector<OctantSlot>& slots) {
     const int nl = src.nl, nmom = ang.nmom;
     const double* amp = nl > 0 ? src.amp->data() : nullptr;
     const double* mom = src.moments->data();
     std::vector<OctantSourceOp> ops;
+    std::vector<SourceBuffer*> stale;  // buffers whose cells outside the spans may be nonzero
     for (OctantSlot& sl : slots) {
-        sl.source->resize(static_cast<size_t>(ncell * sl.nd + 3));
+        SourceBuffer& b = *sl.source;
+        const size_t size = static_cast<size_t>(own.cells() * sl.nd + 3);
+        const bool gaps_zero = src.rows && b.zero_rows && b.nd == sl.nd && b.values.size() == size &&
+                               *b.zero_rows == *src.rows;
+        b.values.resize(size);
+        b.nd = sl.nd;
+        if (!gaps_zero) stale.push_back(&b);
         ops.push_back(make_octant_source_op(sl.nd, nl, nmom, src.light_phase[static_cast<size_t>(sl.o)].data(),
                                             ang.octants[static_cast<size_t>(sl.o)].Y.data()));
     }
+    // Zero source on cells [c0, c1) of the stale buffers.
+    auto zero = [&](std::ptrdiff_t c0, std::ptrdiff_t c1) {
+        if (c1 <= c0) return;
+        for (SourceBuffer* b : stale) std::fill(b->values.data() + c0 * b->nd, b->values.data() + c1 * b->nd, 0.0);
+    };
     constexpr std::ptrdiff_t kChunk = 128;  // cells (25 moments: 25 KB of source moments)
-    for (std::ptrdiff_t c0 = 0; c0 < ncell; c0 += kChunk) {
-        const std::ptrdiff_t n = std::min(kChunk, ncell - c0);
-        for (size_t q = 0; q < slots.size(); ++q)
-            apply_source(ops[q], n, amp ? amp + c0 * nl : nullptr, mom + c0 * nmom, slots[q].source->data() + c0 * slots[q].nd);
+    auto compute = [&](std::ptrdiff_t c0, std::ptrdiff_t c1) {
+        for (; c0 < c1; c0 += kChunk) {
+            const std::ptrdiff_t n = std::min(kChunk, c1 - c0);
+            for (size_t q = 0; q < slots.size(); ++q)
+                apply_source(ops[q], n, amp ? amp + c0 * nl : nullptr, mom + c0 * nmom,
+                             slots[q].source->values.data() + c0 * slots[q].nd);
+        }
+    };
+    if (src.rows == nullptr) {
+        compute(0, own.cells());
+        for (OctantSlot& sl : slots) sl.source->zero_rows.reset();
+        return;
     }
+    for (int k = own.lo[2]; k < own.hi[2]; ++k)
+        for (int j = own.lo[1]; j < own.hi[1]; ++j) {
+            const std::ptrdiff_t row = cell_offset(own, own.lo[0], j, k);
+            const int lo = src.rows->lo(j, k) - own.lo[0], hi = src.rows->hi(j, k) - own.lo[0];
+            zero(row, row + lo);
+            compute(row + lo, row + hi);
+            zero(row + hi, row + own.size(0));
+        }
+    for (SourceBuffer* b : stale) b->zero_rows = *src.rows;
 }
 
 // Moments, fluence and flux of the octants of a group (Kripke's LTimes, moment_kernels.h), one
@@ -96,27 +128,40 @@ void group_sources(std::ptrdiff_t ncell, const SweepSource& src, const AngularSe
 // written once per group. first: the sweep's first group, which zeroes each row just before it
 // accumulates into it (in cache; a separate fill of the outputs was a 160-byte-per-cell pass
 // over memory every sweep, 9% of the DOM phase on the default cloud).
-void group_moments(const Box& own, const AngularSet& ang, const std::vector<OctantSlot>& slots, SweepOutput& out,
-                   bool first) {
+// Outside the source rows' spans only the fluence and flux are reduced (a moment operator with
+// no moments) and phi stays 0.
+void group_moments(const Box& own, const AngularSet& ang, const std::vector<OctantSlot>& slots,
+                   const SourceRows* rows, SweepOutput& out, bool first) {
     const int nmom = ang.nmom;
-    std::vector<OctantMomentOp> ops;
+    std::vector<OctantMomentOp> ops, fluence_ops;
     for (const OctantSlot& sl : slots) {
         const auto& oc = ang.octants[static_cast<size_t>(sl.o)];
         ops.push_back(make_octant_moment_op(sl.nd, nmom, oc.wY.data(), oc.weight.data(), oc.dir.data()));
+        fluence_ops.push_back(make_octant_moment_op(sl.nd, 0, nullptr, oc.weight.data(), oc.dir.data()));
     }
+    const int nx = own.size(0);
     for (int k = own.lo[2]; k < own.hi[2]; ++k)
         for (int j = own.lo[1]; j < own.hi[1]; ++j) {
             const std::ptrdiff_t c = cell_offset(own, own.lo[0], j, k);
             if (first) {
-                const std::ptrdiff_t nx = own.size(0);
                 std::fill_n(out.phi.data() + c * nmom, nx * nmom, 0.0);
                 std::fill_n(out.fluence.data() + c, nx, 0.0);
                 std::fill_n(out.flux.data() + 3 * c, 3 * nx, 0.0);
             }
+            const int lo = rows ? rows->lo(j, k) - own.lo[0] : 0, hi = rows ? rows->hi(j, k) - own.lo[0] : nx;
             for (size_t q = 0; q < slots.size(); ++q) {
                 const Field<double>& psi = *slots[q].psi;
-                apply_moments(ops[q], own.size(0), &psi(own.lo[0], j, k), psi.stride(0), out.phi.data() + c * nmom,
-                              out.fluence.data() + c, out.flux.data() + 3 * c);
+                const double* p = &psi(own.lo[0], j, k);
+                const std::ptrdiff_t ps = psi.stride(0);
+                // cells [a, b) of the row with operator op
+                auto reduce = [&](const OctantMomentOp& op, int a, int b) {
+                    if (b > a)
+                        apply_moments(op, b - a, p + a * ps, ps, out.phi.data() + (c + a) * nmom,
+                                      out.fluence.data() + c + a, out.flux.data() + 3 * (c + a));
+                };
+                reduce(fluence_ops[q], 0, lo);
+                reduce(ops[q], lo, hi);
+                reduce(fluence_ops[q], hi, nx);
             }
         }
 }
@@ -131,6 +176,31 @@ Box upwind_ghost_plane(const Box& own, int a, int s) {
 }
 
 }  // namespace
+
+SourceRows::SourceRows(const Box& own, std::initializer_list<const Field<double>*> fields) : own_(own) {
+    const size_t nrow = static_cast<size_t>(own.size(1)) * static_cast<size_t>(own.size(2));
+    lo_.assign(nrow, own.hi[0]);
+    hi_.assign(nrow, own.lo[0]);
+    for (const Field<double>* f : fields) {
+        nimbus::for_each_cell(own, [&](int i, int j, int k) {
+            const double* v = &(*f)(i, j, k);
+            bool nonzero = false;
+            for (int c = 0; c < f->ncomp(); ++c) nonzero = nonzero || v[c] != 0.0;
+            if (!nonzero) return;
+            const size_t r = row(j, k);
+            lo_[r] = std::min(lo_[r], i);
+            hi_[r] = std::max(hi_[r], i + 1);
+        });
+    }
+    for (size_t r = 0; r < nrow; ++r)
+        if (hi_[r] <= lo_[r]) lo_[r] = hi_[r] = own.lo[0];
+}
+
+double SourceRows::fraction() const {
+    std::int64_t n = 0;
+    for (size_t r = 0; r < lo_.size(); ++r) n += hi_[r] - lo_[r];
+    return own_.cells() > 0 ? static_cast<double>(n) / static_cast<double>(own_.cells()) : 0.0;
+}
 
 void check_sweep_decomposition(const Decomposition& d) {
     for (int a = 0; a < 2; ++a)
@@ -376,7 +446,7 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
     auto cell_kernel = [&](OctantSlot& sl, int i, int j, int k) {
         const std::ptrdiff_t cell = cell_offset(own, i, j, k);
         const int nd = sl.nd;
-        const double* S = sl.source->data() + cell * nd;
+        const double* S = sl.source->values.data() + cell * nd;
         double* p = sl.psi->data() + sl.psi->index(i, j, k);
         if (diamond)
             sl.fixups += diamond_cell(nd, kap[cell], S, sl.cx, sl.cy, sl.cz, p - sl.ox + sl.fx, p - sl.oy + sl.fy,
@@ -501,7 +571,7 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
         // Sources first (group_sources), so that repeated periodic passes only redo the cheap
         // transport kernel.
         const double t_src = MPI_Wtime();
-        group_sources(own.cells(), src, ang_, slots);
+        group_sources(own, src, ang_, slots);
         timing_.moment_seconds += MPI_Wtime() - t_src;
         for (OctantSlot& sl : slots) {
             set_upwind_ghosts(*sl.psi, sl.o);
@@ -532,7 +602,7 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
             out.min_psi = std::min(out.min_psi, min_owned(*sl.psi));
         }
         const double t1 = MPI_Wtime();
-        group_moments(own, ang_, slots, out, first_group);
+        group_moments(own, ang_, slots, src.rows, out, first_group);
         first_group = false;
         timing_.moment_seconds += MPI_Wtime() - t1;
         for (OctantSlot& sl : slots) reduce_octant(*sl.psi, sl.o, out);  // leakage

@@ -24,7 +24,7 @@ struct Sizes {
 std::vector<Sizes> all_sizes() {
     std::vector<Sizes> v;
     for (int nd : {1, 3, 5, 6, 10, 12, 16, 21, 36, 37})
-        for (int nmom : {1, 4, 7, 9, 16, 25, 36, 49, 64})
+        for (int nmom : {0, 1, 4, 7, 9, 16, 25, 36, 49, 64})  // 0: fluence and flux alone
             for (int nl : {0, 2}) v.push_back({nd, nmom, nl});
     return v;
 }

@@ -1,0 +1,139 @@
+// Source rows in the DOM transport sweep (SourceRows, solvers/dom/transport_sweep.h): a sweep
+// that builds sources and moments only on the spans of the rows where the source can be
+// nonzero gives the same fluence, flux and leakage as a sweep over every cell, and the same
+// moments inside the spans (0 outside), for step and diamond, octant overlap 1, 2 and 8, on 1
+// and 2 ranks; and a sweeper whose source buffers were last written with other rows (their
+// cells outside the new spans nonzero) still gives the right answer.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "solvers/dom/angular_set.h"
+#include "solvers/dom/transport_sweep.h"
+#include "tests/support/mpi_test.h"
+
+namespace nimbus::dom {
+namespace {
+
+TEST(DomSourceRows, SpansCoverTheNonzeroCellsOfEachRow) {
+    const Box own{{2, 0, 0}, {10, 3, 2}};  // x 2..9, 3 rows in y, 2 layers
+    Field<double> a(own, 0, 1, 0.0), b(own, 0, 2, 0.0);
+    a(4, 0, 0) = 1.0;
+    a(7, 0, 0) = -2.0;     // any nonzero value counts
+    b(9, 0, 0, 1) = 1e-300;  // second component, another field
+    b(3, 2, 1, 0) = 3.0;
+    const SourceRows rows(own, {&a, &b});
+    EXPECT_EQ(rows.lo(0, 0), 4);
+    EXPECT_EQ(rows.hi(0, 0), 10);
+    EXPECT_EQ(rows.lo(1, 0), rows.hi(1, 0));  // no nonzero cell
+    EXPECT_EQ(rows.lo(2, 1), 3);
+    EXPECT_EQ(rows.hi(2, 1), 4);
+    EXPECT_TRUE(rows.contains(5, 0, 0));  // inside the span, though zero itself
+    EXPECT_FALSE(rows.contains(3, 0, 0));
+    EXPECT_FALSE(rows.contains(4, 2, 1));
+    EXPECT_DOUBLE_EQ(rows.fraction(), 7.0 / 48.0);
+    EXPECT_TRUE(rows == SourceRows(own, {&b, &a}));
+    EXPECT_FALSE(rows == SourceRows(own, {&a}));
+}
+
+// A blob of scattering medium (moments and a first-collision amplitude) centred at cx in an
+// absorbing medium (kappa > 0 everywhere), on the 10 x 7 x 8 grid.
+struct Blob {
+    Field<double> kappa, moments, amp;
+    SweepSource src;
+    SourceRows rows;
+    Blob(const Decomposition& d, const AngularSet& ang, int cx) {
+        const Box& own = d.local();
+        kappa = Field<double>(own, 0, 1, 0.0);
+        moments = Field<double>(own, 0, ang.nmom, 0.0);
+        amp = Field<double>(own, 0, 1, 0.0);
+        for_each_cell(own, [&](int i, int j, int k) {
+            kappa(i, j, k) = 0.3 + 0.05 * ((i + 2 * j + 3 * k) % 7);
+            const double r2 = (i - cx) * (i - cx) + (j - 3) * (j - 3) + (k - 4) * (k - 4);
+            if (r2 > 6.0) return;
+            for (int m = 0; m < ang.nmom; ++m) moments(i, j, k, m) = (m == 0 ? 1.0 : 0.1 / (1 + m)) * (1.0 + 0.1 * i);
+            amp(i, j, k) = std::exp(-0.2 * (d.global().hi[2] - k));
+        });
+        rows = SourceRows(own, {&moments, &amp});
+        src.kappa = &kappa;
+        src.moments = &moments;
+        src.amp = &amp;
+        src.nl = 1;
+        for (int o = 0; o < 8; ++o) {
+            const auto& oc = ang.octants[static_cast<size_t>(o)];
+            auto& P = src.light_phase[static_cast<size_t>(o)];
+            for (int n = 0; n < oc.size(); ++n) P.push_back(0.05 + 0.1 * std::max(0.0, -oc.dir[static_cast<size_t>(n)].z));
+        }
+    }
+    SweepSource with_rows() const {
+        SweepSource s = src;
+        s.rows = &rows;
+        return s;
+    }
+};
+
+// Largest |a - b| over owned cells and components, relative to max |scale| (max over ranks);
+// where keep(i, j, k) is false, b counts as 0.
+template <class Keep>
+double rel_diff(const Field<double>& a, const Field<double>& b, const Field<double>& scale, MPI_Comm comm, Keep keep) {
+    double v[2] = {0.0, 0.0};
+    for_each_cell(a.owned(), [&](int i, int j, int k) {
+        for (int c = 0; c < a.ncomp(); ++c)
+            v[0] = std::max(v[0], std::abs(a(i, j, k, c) - (keep(i, j, k) ? b(i, j, k, c) : 0.0)));
+        for (int c = 0; c < scale.ncomp(); ++c) v[1] = std::max(v[1], std::abs(scale(i, j, k, c)));
+    });
+    MPI_Allreduce(MPI_IN_PLACE, v, 2, MPI_DOUBLE, MPI_MAX, comm);
+    return v[0] / v[1];
+}
+
+// rows: the rows out was swept with (its phi 0 outside them), null for every cell.
+void expect_same_sweep(const SweepOutput& out, const SweepOutput& ref, const SourceRows* rows, MPI_Comm comm,
+                       const std::string& what) {
+    const auto all = [](int, int, int) { return true; };
+    const auto in_rows = [&](int i, int j, int k) { return rows == nullptr || rows->contains(i, j, k); };
+    EXPECT_LT(rel_diff(out.phi, ref.phi, ref.phi, comm, in_rows), 1e-14) << what;
+    EXPECT_LT(rel_diff(out.fluence, ref.fluence, ref.fluence, comm, all), 1e-14) << what;
+    EXPECT_LT(rel_diff(out.flux, ref.flux, ref.fluence, comm, all), 1e-14) << what;
+    for (size_t f = 0; f < 6; ++f)
+        EXPECT_NEAR(out.leakage[f], ref.leakage[f], 1e-13 * (1.0 + std::abs(ref.leakage[f]))) << what << ", face " << f;
+}
+
+TEST(DomSourceRows, SweepOnTheSpansEqualsTheSweepOverEveryCell) {
+    const AngularSet ang = make_angular_set(level_symmetric(4), 3);
+    const Decomposition d(MPI_COMM_WORLD, {10, 7, 8}, {0, 0, 0}, {false, false, false});
+    for (SpatialScheme scheme : {SpatialScheme::step, SpatialScheme::diamond})
+        for (int overlap : {1, 2, 8}) {
+            const std::string what = std::string(scheme == SpatialScheme::step ? "step" : "diamond") + ", overlap " +
+                                     std::to_string(overlap);
+            sweep::SweepOptions opt;
+            opt.tile_rows = 3;
+            opt.octant_overlap = overlap;
+            const Blob left(d, ang, 3), right(d, ang, 6);
+            ASSERT_LT(left.rows.fraction(), 0.5);
+            TransportSweeper every(d, ang, 1.0, opt, 1e-12, scheme), spans(d, ang, 1.0, opt, 1e-12, scheme);
+            SweepOutput ref, out;
+            every.sweep(left.src, ref);
+            spans.sweep(left.with_rows(), out);
+            expect_same_sweep(out, ref, &left.rows, d.comm(), what + ", left blob");
+            // The same sweeper, now with other rows: its source buffers hold the left blob's
+            // sources, nonzero outside the right blob's spans.
+            every.sweep(right.src, ref);
+            spans.sweep(right.with_rows(), out);
+            expect_same_sweep(out, ref, &right.rows, d.comm(), what + ", then the right blob");
+            // The same rows again (the buffers' zeros outside the spans are kept, not rewritten).
+            every.sweep(right.src, ref);
+            spans.sweep(right.with_rows(), out);
+            expect_same_sweep(out, ref, &right.rows, d.comm(), what + ", the right blob again");
+            // Every cell (rows = null), then spans once more.
+            every.sweep(left.src, ref);
+            spans.sweep(left.src, out);
+            expect_same_sweep(out, ref, nullptr, d.comm(), what + ", every cell after spans");
+            every.sweep(right.src, ref);
+            spans.sweep(right.with_rows(), out);
+            expect_same_sweep(out, ref, &right.rows, d.comm(), what + ", spans after every cell");
+        }
+}
+
+}  // namespace
+}  // namespace nimbus::dom
