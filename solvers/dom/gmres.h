@@ -18,11 +18,12 @@
 // 2.8e-5 .. 8.1e-4 of its peak) and about 7.5 PCG iterations per application on the default
 // cloud; the two cycles take the same GMRES iterations on every test and on the default cloud.
 //
-// Stopping: the SAME quantity as source iteration and DSA (iteration.h), the relative change a
-// Richardson step would make, ||P^{-1} (b - (I - K) phi_k)||_2 <= tolerance ||phi_k||_2 (P = I
-// without preconditioner: the plain residual, which is source iteration's change). phi_k is
-// built from the Krylov basis at each iteration (no sweep). Norms over all moments (source
-// iteration and DSA use the Y_00 moment only; it dominates both norms).
+// Stopping: the same kind of quantity as source iteration and DSA (iteration.h), the relative
+// change a Richardson step would make, ||P^{-1} (b - (I - K) phi_k)||_2 <= tolerance ||phi_k||_2
+// (P = I without preconditioner: the plain residual, which is source iteration's change). phi_k
+// is built from the Krylov basis at each iteration (no sweep). Norms over all moments of the
+// cells in the source rows (transport_sweep.h; the Krylov vectors are 0 outside them), where
+// source iteration and DSA take the fluence of every cell (the Y_00 moment dominates both).
 // b costs one sweep of the external (first-collision + emission) source; the initial guess is 0;
 // a last sweep from the converged moments yields the fluence, flux and leakage in `out`. Sweeps
 // per band: iterations + 2 (b, the last one; + 1 per GMRES restart); DSA solves: iterations + 1.

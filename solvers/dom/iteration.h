@@ -1,8 +1,9 @@
 // The outer iteration of one band: source iteration, optionally accelerated by DSA (dsa.h).
 //   phi^{l+1/2} = sweep( kappa* a* Σ chi_l Y phi^l + Q )            (transport_sweep.h)
 //   phi^{l+1}   = phi^{l+1/2} (+ DSA correction of the scalar flux)
-// stopping when the relative change of the scalar fluence,
-//   ||phi_0^{l+1} - phi_0^l||_2 / ||phi_0^{l+1}||_2  (owned cells, all ranks),
+// stopping when the relative change of the scalar fluence F = Σ_n w_n psi_n,
+//   ||F^{l+1} - F^l||_2 / ||F^{l+1}||_2  (every owned cell, all ranks; F = sqrt(4π) phi_0 where
+//   phi is computed, the source rows of transport_sweep.h),
 // falls below opt.tolerance. With plain source iteration the error left is about
 // tolerance · rho/(1 - rho), rho ≈ a the spectral radius; with DSA rho is small.
 //

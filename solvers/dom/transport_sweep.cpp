@@ -414,6 +414,8 @@ void TransportSweeper::reduce_octant(const Field<double>& psi, int o, SweepOutpu
 
 void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
     const Box& own = d_.local();
+    if (src.rows && src.rows->box() != own)
+        throw Error("dom: the sweep's source rows are not on this rank's box (a caller's bug)");
     const int nmom = ang_.nmom;
     if (out.phi.owned() != own || out.phi.ncomp() != nmom) {  // else overwritten by the first group_moments
         out.phi = Field<double>(own, 0, nmom, 0.0);

@@ -89,6 +89,7 @@ public:
     bool contains(int i, int j, int k) const { return i >= lo(j, k) && i < hi(j, k); }
     // Share of the owned cells inside the spans.
     double fraction() const;
+    const Box& box() const { return own_; }
     bool operator==(const SourceRows& o) const { return own_ == o.own_ && lo_ == o.lo_ && hi_ == o.hi_; }
     // Calls f(c) for every cell inside the spans, c = its offset in a ghost-free field on own
     // (x fastest), in increasing order.
@@ -127,8 +128,9 @@ struct SweepSource {
     int nl = 0;
     // Per octant: nl x nd phase values P_l,n (cell_kernel.h).
     std::array<std::vector<double>, 8> light_phase;
-    // Where the source can be nonzero (above); null: every cell. Must cover every cell where
-    // moments, amp or kappa* a* is nonzero; phi is then left 0 outside it.
+    // Where the source can be nonzero (above), on d.local(); null: every cell. Must cover every
+    // cell where moments or amp is nonzero (the source of this sweep) and every cell where
+    // kappa* a* is (where the next source needs phi, which is left 0 outside the rows).
     const SourceRows* rows = nullptr;
 };
 

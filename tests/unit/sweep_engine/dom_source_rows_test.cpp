@@ -1,13 +1,15 @@
 // Source rows in the DOM transport sweep (SourceRows, solvers/dom/transport_sweep.h): a sweep
 // that builds sources and moments only on the spans of the rows where the source can be
 // nonzero gives the same fluence, flux and leakage as a sweep over every cell, and the same
-// moments inside the spans (0 outside), for step and diamond, octant overlap 1, 2 and 8, on 1
-// and 2 ranks; and a sweeper whose source buffers were last written with other rows (their
-// cells outside the new spans nonzero) still gives the right answer.
+// moments inside the spans (0 outside), for step and diamond, octant overlap 1, 2 and 8, on 1,
+// 2 and 3 ranks split along z (slabs) and along x (the spans in global x indices), with spans
+// that reach both ends of their rows; and a sweeper whose source buffers were last written with
+// other rows (their cells outside the new spans nonzero) still gives the right answer.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 #include "solvers/dom/angular_set.h"
 #include "solvers/dom/transport_sweep.h"
@@ -101,15 +103,17 @@ void expect_same_sweep(const SweepOutput& out, const SweepOutput& ref, const Sou
 
 TEST(DomSourceRows, SweepOnTheSpansEqualsTheSweepOverEveryCell) {
     const AngularSet ang = make_angular_set(level_symmetric(4), 3);
-    const Decomposition d(MPI_COMM_WORLD, {10, 7, 8}, {0, 0, 0}, {false, false, false});
+    for (const Int3 dims : {Int3{0, 0, 0}, Int3{test::world_size(), 1, 1}})  // z slabs; x split
     for (SpatialScheme scheme : {SpatialScheme::step, SpatialScheme::diamond})
         for (int overlap : {1, 2, 8}) {
-            const std::string what = std::string(scheme == SpatialScheme::step ? "step" : "diamond") + ", overlap " +
-                                     std::to_string(overlap);
+            const Decomposition d(MPI_COMM_WORLD, {10, 7, 8}, dims, {false, false, false});
+            const std::string what = d.describe() + ", " + (scheme == SpatialScheme::step ? "step" : "diamond") +
+                                     ", overlap " + std::to_string(overlap);
             sweep::SweepOptions opt;
             opt.tile_rows = 3;
             opt.octant_overlap = overlap;
-            const Blob left(d, ang, 3), right(d, ang, 6);
+            // x 0..3 and 6..9: spans from the first and to the last cell of their rows
+            const Blob left(d, ang, 1), right(d, ang, 8);
             ASSERT_LT(left.rows.fraction(), 0.5);
             TransportSweeper every(d, ang, 1.0, opt, 1e-12, scheme), spans(d, ang, 1.0, opt, 1e-12, scheme);
             SweepOutput ref, out;
