@@ -11,6 +11,7 @@
 
 #include "solvers/dom/angular_set.h"
 #include "solvers/dom/transport_sweep.h"
+#include "tests/unit/sweep_engine/dom_test_source.h"
 #include "tests/support/mpi_test.h"
 
 namespace nimbus::dom {
@@ -44,16 +45,7 @@ SweepOutput sweep_once(const Decomposition& d, const AngularSet& ang, const Case
         for (int m = 0; m < ang.nmom; ++m) moments(i, j, k, m) = (m == 0 ? 1.0 : 0.1 / (1 + m)) * (1.0 + 0.1 * i - 0.05 * k);
         amp(i, j, k) = std::exp(-0.2 * (d.global().hi[2] - k));
     });
-    SweepSource src;
-    src.kappa = &kappa;
-    src.moments = &moments;
-    src.amp = &amp;
-    src.nl = 1;
-    for (int o = 0; o < 8; ++o) {
-        const auto& oc = ang.octants[static_cast<size_t>(o)];
-        auto& P = src.light_phase[static_cast<size_t>(o)];
-        for (int n = 0; n < oc.size(); ++n) P.push_back(0.05 + 0.1 * std::max(0.0, -oc.dir[static_cast<size_t>(n)].z));
-    }
+    const SweepSource src = test_source::make(ang, kappa, moments, amp);
     sweep::SweepOptions opt;
     opt.tile_rows = c.tile_rows;
     opt.octant_overlap = overlap;

@@ -13,6 +13,7 @@
 
 #include "solvers/dom/angular_set.h"
 #include "solvers/dom/transport_sweep.h"
+#include "tests/unit/sweep_engine/dom_test_source.h"
 #include "tests/support/mpi_test.h"
 
 namespace nimbus::dom {
@@ -58,15 +59,7 @@ struct Blob {
             amp(i, j, k) = std::exp(-0.2 * (d.global().hi[2] - k));
         });
         rows = SourceRows(own, {&moments, &amp});
-        src.kappa = &kappa;
-        src.moments = &moments;
-        src.amp = &amp;
-        src.nl = 1;
-        for (int o = 0; o < 8; ++o) {
-            const auto& oc = ang.octants[static_cast<size_t>(o)];
-            auto& P = src.light_phase[static_cast<size_t>(o)];
-            for (int n = 0; n < oc.size(); ++n) P.push_back(0.05 + 0.1 * std::max(0.0, -oc.dir[static_cast<size_t>(n)].z));
-        }
+        src = test_source::make(ang, kappa, moments, amp);
     }
     SweepSource with_rows() const {
         SweepSource s = src;
