@@ -68,7 +68,8 @@ public:
     // Peak = about twice the state (3 moment fields, angular fluxes of the largest octant, the
     // band's coefficients, the light sources: state_bytes_per_cell below) per local cell, measured
     // 1.95x and 2.01x on the default cloud at S4 L3 and S8 L7; GMRES adds its Krylov basis, up to
-    // 31 vectors of all moments (restart 30), and periodic x/y the kept ghost planes.
+    // 31 vectors of all moments (restart 30) of the cells that scatter (the source rows; counted
+    // here for every cell, an upper bound), and periodic x/y the kept ghost planes.
     // Before the light pass: the decomposition the sweeps need, and diamond with DSA on cells too
     // thick for it (check_diamond_dsa, from the medium: kappa* = (1 - a f) rho sigma_t of every band).
     void check_layout(const Decomposition& d) const override { dom::check_sweep_decomposition(d); }

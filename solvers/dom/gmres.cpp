@@ -48,12 +48,12 @@ PetscErrorCode shell_mult(Mat A, Vec x, Vec y) {
     PetscCall(MatShellGetContext(A, &c));
     const PetscScalar* xv = nullptr;
     PetscCall(VecGetArrayRead(x, &xv));
-    const int nmom = c->ang->nmom;
-    const size_t ncell = static_cast<size_t>(c->p->kappa.owned().cells());
+    const size_t nmom = static_cast<size_t>(c->ang->nmom);
+    const SourceRows& rows = *c->scatter_only.rows;
     const double* ss = c->p->sigma_s.data();
     double* s = c->s.data();  // 0 outside the source rows, where sigma_s is 0
-    c->scatter_only.rows->for_each_cell([&](size_t q) {
-        for (int k = 0; k < nmom; ++k) s[q * nmom + k] = ss[q] * c->chi[static_cast<size_t>(k)] * xv[q * nmom + k];
+    rows.for_each_cell([&](size_t i, size_t q) {
+        for (size_t k = 0; k < nmom; ++k) s[i * nmom + k] = ss[i] * c->chi[k] * xv[q * nmom + k];
     });
     if (!c->failure.empty()) {
         PetscCall(VecRestoreArrayRead(x, &xv));
@@ -72,7 +72,9 @@ PetscErrorCode shell_mult(Mat A, Vec x, Vec y) {
     PetscScalar* yv = nullptr;
     PetscCall(VecGetArray(y, &yv));
     const double* phi = c->out.phi.data();
-    for (size_t q = 0; q < ncell * static_cast<size_t>(nmom); ++q) yv[q] = xv[q] - phi[q];
+    rows.for_each_cell([&](size_t i, size_t q) {
+        for (size_t k = 0; k < nmom; ++k) yv[q * nmom + k] = xv[q * nmom + k] - phi[i * nmom + k];
+    });
     PetscCall(VecRestoreArray(y, &yv));
     PetscCall(VecRestoreArrayRead(x, &xv));
     return 0;
@@ -80,8 +82,7 @@ PetscErrorCode shell_mult(Mat A, Vec x, Vec y) {
 
 // What the preconditioner and the convergence test need; owned by gmres_band's frame.
 struct KrylovContext {
-    const Box* own = nullptr;
-    const SourceRows* rows = nullptr;
+    const SourceRows* rows = nullptr;  // the cells of the Krylov vectors
     int nmom = 0;
     DiffusionSynthetic* dsa = nullptr;  // null: no preconditioner
     Report* report = nullptr;
@@ -106,18 +107,17 @@ PetscErrorCode dsa_apply(PC pc, Vec x, Vec y) {
     PetscCall(VecCopy(x, y));
     if (!c->failure.empty()) return 0;
     const double sqrt4pi = std::sqrt(4.0 * std::acos(-1.0)), y1 = first_moment_scale();
-    const int nmom = c->nmom;
+    const size_t nmom = static_cast<size_t>(c->nmom);
     const bool first_moments = nmom >= 4;
     const PetscScalar* xv = nullptr;
     PetscCall(VecGetArrayRead(x, &xv));
-    double* r0 = c->r0.data();
+    double* r0 = c->r0.data();  // 0 outside the source rows (never written there)
     double* r1 = c->r1.data();
-    const size_t ncell = static_cast<size_t>(c->own->cells());
-    for (size_t q = 0; q < ncell; ++q) {
-        r0[q] = sqrt4pi * xv[q * nmom];
-        if (!first_moments) continue;
-        for (int m = 1; m <= 3; ++m) r1[3 * q + first_moment_axis(m)] = xv[q * nmom + m] / y1;
-    }
+    c->rows->for_each_cell([&](size_t i, size_t q) {
+        r0[i] = sqrt4pi * xv[q * nmom];
+        if (!first_moments) return;
+        for (int m = 1; m <= 3; ++m) r1[3 * i + first_moment_axis(m)] = xv[q * nmom + m] / y1;
+    });
     PetscCall(VecRestoreArrayRead(x, &xv));
     try {
         ScopedTimer t(*c->report, "dsa_solve");
@@ -131,12 +131,11 @@ PetscErrorCode dsa_apply(PC pc, Vec x, Vec y) {
     const double* dF = current.data();
     PetscScalar* yv = nullptr;
     PetscCall(VecGetArray(y, &yv));
-    // Only inside the source rows: outside them the sweep leaves phi 0 (K x = 0 there), so x
-    // stays 0 there and the Krylov space carries none of those cells.
-    c->rows->for_each_cell([&](size_t q) {
-        yv[q * nmom] += delta[q] / sqrt4pi;
+    // The corrections return to the cells of the Krylov vectors, the source rows' (gmres_band).
+    c->rows->for_each_cell([&](size_t i, size_t q) {
+        yv[q * nmom] += delta[i] / sqrt4pi;
         if (!first_moments) return;
-        for (int m = 1; m <= 3; ++m) yv[q * nmom + m] += y1 * dF[3 * q + first_moment_axis(m)];
+        for (int m = 1; m <= 3; ++m) yv[q * nmom + m] += y1 * dF[3 * i + first_moment_axis(m)];
     });
     PetscCall(VecRestoreArray(y, &yv));
     return 0;
@@ -183,13 +182,16 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     IterationResult res;
     const Box& own = d.local();
     const int nmom = ang.nmom;
-    const PetscInt nloc = static_cast<PetscInt>(own.cells() * nmom);
+    const size_t nm = static_cast<size_t>(nmom);
+    // The Krylov vectors hold the moments of the source rows' cells only, packed (transport_sweep.h):
+    // elsewhere sigma_s is 0, so the moments feed no source, and the sweep leaves them 0.
+    const SourceRows rows = source_rows(p);
+    const PetscInt nloc = static_cast<PetscInt>(rows.cells() * nm);
     ShellContext c{&sweeper, &ang, &p, {}, Field<double>(own, 0, nmom, 0.0), {}, {}, 0, {}};
     for (int k = 0; k < nmom; ++k) {
         const int l = ang.degree[static_cast<size_t>(k)];
         c.chi.push_back(l < static_cast<int>(p.phase.chi.size()) ? p.phase.chi[static_cast<size_t>(l)] : 0.0);
     }
-    const SourceRows rows = source_rows(p);
     c.scatter_only.kappa = &p.kappa;
     c.scatter_only.moments = &c.s;
     c.scatter_only.nl = 0;
@@ -218,7 +220,8 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     {
         PetscScalar* bv = nullptr;
         check(VecGetArray(b, &bv), "VecGetArray");
-        std::copy(out.phi.data(), out.phi.data() + nloc, bv);
+        const double* phi = out.phi.data();
+        rows.for_each_cell([&](size_t i, size_t q) { std::copy_n(phi + i * nm, nm, bv + q * nm); });
         check(VecRestoreArray(b, &bv), "VecRestoreArray");
     }
     check(MatCreateShell(comm, nloc, nloc, PETSC_DETERMINE, PETSC_DETERMINE, &c, &Ah.m), "MatCreateShell");
@@ -231,7 +234,6 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     check(KSPGMRESSetRestart(ksp, 30), "KSPGMRESSetRestart");
     KrylovContext kc;
     kc.sweep_failure = &c.failure;
-    kc.own = &own;
     kc.rows = &rows;
     kc.nmom = nmom;
     kc.report = &report;
@@ -275,22 +277,19 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     res.iterations = static_cast<int>(its);
     res.converged = solve_err == 0 && reason > 0;
     res.dsa_linear_iterations = kc.dsa_iterations;
-    // Last sweep from the solution: phi = K x + b, with fluence, flux and leakage.
-    Field<double> phi(own, 0, nmom, 0.0);
-    {
-        const PetscScalar* xv = nullptr;
-        VecGetArrayRead(x, &xv);
-        std::copy(xv, xv + nloc, phi.data());
-        VecRestoreArrayRead(x, &xv);
-    }
     if (!c.failure.empty()) throw Error(c.failure);
     if (!kc.failure.empty()) throw Error(kc.failure);
     check(solve_err, "KSPSolve");
-    rows.for_each_cell([&](size_t q) {
-        for (int k = 0; k < nmom; ++k)
-            c.s.data()[q * nmom + k] = p.sigma_s.data()[q] * c.chi[static_cast<size_t>(k)] * phi.data()[q * nmom + k];
-        c.s.data()[q * nmom] += y0inv * p.emission.data()[q];
-    });
+    // Last sweep from the solution x: phi = K x + b, with fluence, flux and leakage.
+    {
+        const PetscScalar* xv = nullptr;
+        check(VecGetArrayRead(x, &xv), "VecGetArrayRead");
+        rows.for_each_cell([&](size_t i, size_t q) {
+            for (size_t k = 0; k < nm; ++k) c.s.data()[i * nm + k] = p.sigma_s.data()[i] * c.chi[k] * xv[q * nm + k];
+            c.s.data()[i * nm] += y0inv * p.emission.data()[i];
+        });
+        check(VecRestoreArrayRead(x, &xv), "VecRestoreArrayRead");
+    }
     sweeper.sweep(external, out);
     res.seconds = MPI_Wtime() - t0;
     return res;

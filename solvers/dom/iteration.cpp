@@ -29,7 +29,7 @@ void make_source_moments(const BandProblem& p, const AngularSet& ang, const Sour
     const double* q = p.emission.data();
     const double* ph = phi.data();
     double* out = s.data();
-    rows.for_each_cell([&](size_t c) {
+    rows.for_each_cell([&](size_t c, size_t) {
         for (int k = 0; k < nmom; ++k) out[c * nmom + k] = ss[c] * chi[static_cast<size_t>(k)] * ph[c * nmom + k];
         out[c * nmom] += y0inv * q[c];
     });

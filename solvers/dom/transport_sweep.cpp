@@ -196,10 +196,14 @@ SourceRows::SourceRows(const Box& own, std::initializer_list<const Field<double>
         if (hi_[r] <= lo_[r]) lo_[r] = hi_[r] = own.lo[0];
 }
 
+size_t SourceRows::cells() const {
+    size_t n = 0;
+    for (size_t r = 0; r < lo_.size(); ++r) n += static_cast<size_t>(hi_[r] - lo_[r]);
+    return n;
+}
+
 double SourceRows::fraction() const {
-    std::int64_t n = 0;
-    for (size_t r = 0; r < lo_.size(); ++r) n += hi_[r] - lo_[r];
-    return own_.cells() > 0 ? static_cast<double>(n) / static_cast<double>(own_.cells()) : 0.0;
+    return own_.cells() > 0 ? static_cast<double>(cells()) / static_cast<double>(own_.cells()) : 0.0;
 }
 
 void check_sweep_decomposition(const Decomposition& d) {

@@ -91,14 +91,18 @@ public:
     double fraction() const;
     const Box& box() const { return own_; }
     bool operator==(const SourceRows& o) const { return own_ == o.own_ && lo_ == o.lo_ && hi_ == o.hi_; }
-    // Calls f(c) for every cell inside the spans, c = its offset in a ghost-free field on own
-    // (x fastest), in increasing order.
+    // Number of cells inside the spans.
+    size_t cells() const;
+    // Calls f(c, q) for every cell inside the spans, in increasing order: c is the cell's offset
+    // in a ghost-free field on own (x fastest), q = 0, 1, ... its place among the span cells
+    // (the index into storage packed to the spans, as GMRES's vectors are).
     template <class F>
     void for_each_cell(F&& f) const {
+        size_t q = 0;
         for (int k = own_.lo[2]; k < own_.hi[2]; ++k)
             for (int j = own_.lo[1]; j < own_.hi[1]; ++j) {
                 const size_t r = row(j, k), first = r * static_cast<size_t>(own_.size(0));
-                for (int i = lo_[r]; i < hi_[r]; ++i) f(first + static_cast<size_t>(i - own_.lo[0]));
+                for (int i = lo_[r]; i < hi_[r]; ++i) f(first + static_cast<size_t>(i - own_.lo[0]), q++);
             }
     }
 

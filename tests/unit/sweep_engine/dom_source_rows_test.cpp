@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "solvers/dom/angular_set.h"
 #include "solvers/dom/transport_sweep.h"
@@ -36,6 +37,15 @@ TEST(DomSourceRows, SpansCoverTheNonzeroCellsOfEachRow) {
     EXPECT_FALSE(rows.contains(3, 0, 0));
     EXPECT_FALSE(rows.contains(4, 2, 1));
     EXPECT_DOUBLE_EQ(rows.fraction(), 7.0 / 48.0);
+    EXPECT_EQ(rows.cells(), 7u);
+    // Offsets in a ghost-free field on own (x fastest, 8 x 3 per layer) and packed places.
+    std::vector<size_t> offsets, places;
+    rows.for_each_cell([&](size_t c, size_t q) {
+        offsets.push_back(c);
+        places.push_back(q);
+    });
+    EXPECT_EQ(offsets, (std::vector<size_t>{2, 3, 4, 5, 6, 7, 24 + 2 * 8 + 1}));
+    EXPECT_EQ(places, (std::vector<size_t>{0, 1, 2, 3, 4, 5, 6}));
     EXPECT_TRUE(rows == SourceRows(own, {&b, &a}));
     EXPECT_FALSE(rows == SourceRows(own, {&a}));
 }
