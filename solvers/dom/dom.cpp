@@ -25,14 +25,15 @@ namespace {
 // (no volume source, no scattering) with the true extinction kappa = rho sigma_t. The lagged
 // reflected planes are cleared first (a high reflective face then reflects nothing of it); the
 // periodic planes start from the solve's last sweep.
-void uncollided_sky(const Medium& m, const BandOptics& o, const dom::AngularSet& ang, dom::TransportSweeper& sweeper,
+void uncollided_sky(const Medium& m, const BandOptics& o, dom::TransportSweeper& sweeper,
                     dom::SweepOutput& unc) {
     const Box own = m.rho.owned();
-    Field<double> kappa(own, 0, 1, 0.0), zero(own, 0, ang.nmom, 0.0), no_light(own, 0, 1, 0.0);
+    Field<double> kappa(own, 0, 1, 0.0), no_light(own, 0, 1, 0.0);
     for_each_cell(own, [&](int i, int j, int k) { kappa(i, j, k) = m.rho(i, j, k) * o.sigma_t; });
+    const dom::SourceRows no_source(own, {});  // no cell has a source or needs moments
     dom::SweepSource src;
     src.kappa = &kappa;
-    src.moments = &zero;
+    src.rows = &no_source;  // moments: none
     src.amp = &no_light;  // non-null: this sweep carries the boundary source
     src.nl = 0;
     sweeper.reset_reflections();
@@ -67,7 +68,10 @@ public:
     void solve(const SolveContext& ctx, DiffuseSolution& out) override;
     // Peak = about twice the state (3 moment fields, angular fluxes of the largest octant, the
     // band's coefficients, the light sources: state_bytes_per_cell below) per local cell, measured
-    // 1.95x and 2.01x on the default cloud at S4 L3 and S8 L7; GMRES adds its Krylov basis, up to
+    // 1.95x and 2.01x on the default cloud at S4 L3 and S8 L7 when the moments covered every cell.
+    // Since the twenty-ninth session they cover only the cells that scatter (the source rows,
+    // transport_sweep.h), which the estimate cannot know before the medium is read: it counts
+    // every cell, an upper bound (870 -> 681 MiB measured at S4 L3). GMRES adds its Krylov basis, up to
     // 31 vectors of all moments (restart 30) of the cells that scatter (the source rows; counted
     // here for every cell, an upper bound), and periodic x/y the kept ghost planes.
     // Before the light pass: the decomposition the sweeps need, and diamond with DSA on cells too
@@ -292,7 +296,7 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
             // delta-M forward peak of the sky stays in, as for the first-collision terms).
             dom::SweepOutput unc;
             const bool sky_lit = bc.sky && weight[sky_term] != 0.0;
-            if (sky_lit) uncollided_sky(m, group.optics, ang, sweeper, unc);
+            if (sky_lit) uncollided_sky(m, group.optics, sweeper, unc);
             add_to_bands(group, r, p, sw, sky_lit ? &unc : nullptr, out);
         }
     for (int b = 0; b < m.nbands(); ++b) {

@@ -34,7 +34,7 @@ struct ShellContext {
     const AngularSet* ang;
     const BandProblem* p;
     std::vector<double> chi;  // per moment
-    Field<double> s;          // source moments
+    std::vector<double> s;    // source moments, packed on the source rows like the Krylov vectors
     SweepSource scatter_only; // no lights
     SweepOutput out;
     int sweeps = 0;
@@ -51,9 +51,9 @@ PetscErrorCode shell_mult(Mat A, Vec x, Vec y) {
     const size_t nmom = static_cast<size_t>(c->ang->nmom);
     const SourceRows& rows = *c->scatter_only.rows;
     const double* ss = c->p->sigma_s.data();
-    double* s = c->s.data();  // 0 outside the source rows, where sigma_s is 0
+    double* s = c->s.data();
     rows.for_each_cell([&](size_t i, size_t q) {
-        for (size_t k = 0; k < nmom; ++k) s[i * nmom + k] = ss[i] * c->chi[k] * xv[q * nmom + k];
+        for (size_t k = 0; k < nmom; ++k) s[q * nmom + k] = ss[i] * c->chi[k] * xv[q * nmom + k];
     });
     if (!c->failure.empty()) {
         PetscCall(VecRestoreArrayRead(x, &xv));
@@ -71,10 +71,8 @@ PetscErrorCode shell_mult(Mat A, Vec x, Vec y) {
     ++c->sweeps;
     PetscScalar* yv = nullptr;
     PetscCall(VecGetArray(y, &yv));
-    const double* phi = c->out.phi.data();
-    rows.for_each_cell([&](size_t i, size_t q) {
-        for (size_t k = 0; k < nmom; ++k) yv[q * nmom + k] = xv[q * nmom + k] - phi[i * nmom + k];
-    });
+    const double* phi = c->out.phi.data();  // packed as x
+    for (size_t q = 0; q < c->out.phi.size(); ++q) yv[q] = xv[q] - phi[q];
     PetscCall(VecRestoreArray(y, &yv));
     PetscCall(VecRestoreArrayRead(x, &xv));
     return 0;
@@ -187,27 +185,26 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     // elsewhere sigma_s is 0, so the moments feed no source, and the sweep leaves them 0.
     const SourceRows rows = source_rows(p);
     const PetscInt nloc = static_cast<PetscInt>(rows.cells() * nm);
-    ShellContext c{&sweeper, &ang, &p, {}, Field<double>(own, 0, nmom, 0.0), {}, {}, 0, {}};
+    ShellContext c{&sweeper, &ang, &p, {}, std::vector<double>(rows.cells() * nm, 0.0), {}, {}, 0, {}};
     for (int k = 0; k < nmom; ++k) {
         const int l = ang.degree[static_cast<size_t>(k)];
         c.chi.push_back(l < static_cast<int>(p.phase.chi.size()) ? p.phase.chi[static_cast<size_t>(l)] : 0.0);
     }
     c.scatter_only.kappa = &p.kappa;
-    c.scatter_only.moments = &c.s;
+    c.scatter_only.moments = c.s;
     c.scatter_only.nl = 0;
     c.scatter_only.rows = &rows;
 
     // b: one sweep of the external source (lights + emission), scattering off.
     SweepSource external;
     external.kappa = &p.kappa;
-    external.moments = &c.s;
+    external.moments = c.s;
     external.amp = &p.amp;
     external.nl = p.nl;
     external.light_phase = p.light_phase;
     external.rows = &rows;
     const double y0inv = std::sqrt(4.0 * std::acos(-1.0));
-    c.s.fill(0.0);
-    for (std::ptrdiff_t q = 0; q < own.cells(); ++q) c.s.data()[q * nmom] = y0inv * p.emission.data()[q];
+    rows.for_each_cell([&](size_t i, size_t q) { c.s[q * nm] = y0inv * p.emission.data()[i]; });
     sweeper.sweep(external, out);
 
     // Owning handles (petsc_support.h): nothing leaks when a check or the DSA set-up throws.
@@ -220,8 +217,7 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     {
         PetscScalar* bv = nullptr;
         check(VecGetArray(b, &bv), "VecGetArray");
-        const double* phi = out.phi.data();
-        rows.for_each_cell([&](size_t i, size_t q) { std::copy_n(phi + i * nm, nm, bv + q * nm); });
+        std::copy(out.phi.begin(), out.phi.end(), bv);  // packed as the Krylov vectors
         check(VecRestoreArray(b, &bv), "VecRestoreArray");
     }
     check(MatCreateShell(comm, nloc, nloc, PETSC_DETERMINE, PETSC_DETERMINE, &c, &Ah.m), "MatCreateShell");
@@ -285,8 +281,8 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
         const PetscScalar* xv = nullptr;
         check(VecGetArrayRead(x, &xv), "VecGetArrayRead");
         rows.for_each_cell([&](size_t i, size_t q) {
-            for (size_t k = 0; k < nm; ++k) c.s.data()[i * nm + k] = p.sigma_s.data()[i] * c.chi[k] * xv[q * nm + k];
-            c.s.data()[i * nm] += y0inv * p.emission.data()[i];
+            for (size_t k = 0; k < nm; ++k) c.s[q * nm + k] = p.sigma_s.data()[i] * c.chi[k] * xv[q * nm + k];
+            c.s[q * nm] += y0inv * p.emission.data()[i];
         });
         check(VecRestoreArrayRead(x, &xv), "VecRestoreArrayRead");
     }

@@ -14,10 +14,10 @@
 namespace nimbus::dom {
 namespace {
 
-// Scattering (and emission) source moments s_k = sigma_s chi_l(k) phi_k (+ sqrt(4π) q at k=0),
-// inside the source rows (s stays 0 outside them: sigma_s and q are 0 there).
+// Scattering (and emission) source moments s_k = sigma_s chi_l(k) phi_k (+ sqrt(4π) q at k=0)
+// of the cells of the source rows, packed as phi is (transport_sweep.h).
 void make_source_moments(const BandProblem& p, const AngularSet& ang, const SourceRows& rows,
-                         const Field<double>& phi, Field<double>& s) {
+                         const std::vector<double>& phi, std::vector<double>& s) {
     const int nmom = ang.nmom;
     const double y0inv = std::sqrt(4.0 * std::acos(-1.0));  // 1 / Y_00
     std::vector<double> chi(static_cast<size_t>(nmom));
@@ -29,9 +29,10 @@ void make_source_moments(const BandProblem& p, const AngularSet& ang, const Sour
     const double* q = p.emission.data();
     const double* ph = phi.data();
     double* out = s.data();
-    rows.for_each_cell([&](size_t c, size_t) {
-        for (int k = 0; k < nmom; ++k) out[c * nmom + k] = ss[c] * chi[static_cast<size_t>(k)] * ph[c * nmom + k];
-        out[c * nmom] += y0inv * q[c];
+    const size_t nm = static_cast<size_t>(nmom);
+    rows.for_each_cell([&](size_t c, size_t i) {
+        for (size_t k = 0; k < nm; ++k) out[i * nm + k] = ss[c] * chi[k] * ph[i * nm + k];
+        out[i * nm] += y0inv * q[c];
     });
 }
 
@@ -90,14 +91,17 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
     }
     const double y00 = 1.0 / std::sqrt(4.0 * std::acos(-1.0));
     const double y1 = first_moment_scale();
-    Field<double> phi(own, 0, ang.nmom, 0.0), s(own, 0, ang.nmom, 0.0);
+    // phi (the iterate) and s, the source moments, live on the source rows' cells, packed
+    // (transport_sweep.h): elsewhere sigma_s is 0 and phi feeds no source.
+    const SourceRows rows = source_rows(p);
+    const size_t nm = static_cast<size_t>(ang.nmom);
+    std::vector<double> phi(rows.cells() * nm, 0.0), s(rows.cells() * nm, 0.0);
     Field<double> fluence_old(own, 0, 1, 0.0), flux_old(own, 0, 3, 0.0);
     Field<double> mirror_source(own, 0, 1, 0.0);  // DSA's boundary source on high mirror faces
     bool correct_current = false;  // DSA's current correction, switched on below
-    const SourceRows rows = source_rows(p);  // phi is computed, and corrected, on these only
     SweepSource src;
     src.kappa = &p.kappa;
-    src.moments = &s;
+    src.moments = s;
     src.amp = &p.amp;
     src.nl = p.nl;
     src.light_phase = p.light_phase;
@@ -117,14 +121,15 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
                 [&](int i, int j, int k, double dJ) { mirror_source(i, j, k) += dJ / p.h; });
             res.dsa_linear_iterations +=
                 dsa->correct(fluence_old, flux_old, out.fluence, out.flux, correct_current, &mirror_source);
-            const auto& delta = dsa->last_correction();
-            const auto& current = dsa->last_current_correction();
+            // The corrections (fields on own, 0 outside DSA's box) of the moments on the rows.
+            const double* delta = dsa->last_correction().data();
+            const double* current = dsa->last_current_correction().data();
             const bool first_moments = correct_current && ang.nmom >= 4;
-            for_each_cell(dsa->box(), [&](int i, int j, int k) {
-                if (!rows.contains(i, j, k)) return;
-                out.phi(i, j, k, 0) += y00 * delta(i, j, k);
+            double* ph = out.phi.data();
+            rows.for_each_cell([&](size_t c, size_t i) {
+                ph[i * nm] += y00 * delta[c];
                 if (!first_moments) return;
-                for (int m = 1; m <= 3; ++m) out.phi(i, j, k, m) += y1 * current(i, j, k, first_moment_axis(m));
+                for (int m = 1; m <= 3; ++m) ph[i * nm + static_cast<size_t>(m)] += y1 * current[3 * c + static_cast<size_t>(first_moment_axis(m))];
             });
         }
         double sums[2] = {0.0, 0.0};

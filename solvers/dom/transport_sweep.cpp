@@ -76,17 +76,17 @@ struct OctantSlot {
 // SourceBuffer). Cells are written in increasing order: the vector stores of a chunk's last cell
 // may run 3 values past it (zeros, moment_kernels.h), into the next cell, written after it (+3
 // at the end of the array).
-void group_sources(const Box& own, const SweepSource& src, const AngularSet& ang, std::vector<OctantSlot>& slots) {
+void group_sources(const Box& own, const SweepSource& src, const SourceRows& rows, const AngularSet& ang,
+                   std::vector<OctantSlot>& slots) {
     const int nl = src.nl, nmom = ang.nmom;
     const double* amp = nl > 0 ? src.amp->data() : nullptr;
-    const double* mom = src.moments->data();
+    const double* mom = src.moments.data();  // packed on rows
     std::vector<OctantSourceOp> ops;
     std::vector<SourceBuffer*> stale;  // buffers whose cells outside the spans may be nonzero
     for (OctantSlot& sl : slots) {
         SourceBuffer& b = *sl.source;
         const size_t size = static_cast<size_t>(own.cells() * sl.nd + 3);
-        const bool gaps_zero = src.rows && b.zero_rows && b.nd == sl.nd && b.values.size() == size &&
-                               *b.zero_rows == *src.rows;
+        const bool gaps_zero = b.zero_rows && b.nd == sl.nd && b.values.size() == size && *b.zero_rows == rows;
         b.values.resize(size);
         b.nd = sl.nd;
         if (!gaps_zero) stale.push_back(&b);
@@ -99,28 +99,26 @@ void group_sources(const Box& own, const SweepSource& src, const AngularSet& ang
         for (SourceBuffer* b : stale) std::fill(b->values.data() + c0 * b->nd, b->values.data() + c1 * b->nd, 0.0);
     };
     constexpr std::ptrdiff_t kChunk = 128;  // cells (25 moments: 25 KB of source moments)
-    auto compute = [&](std::ptrdiff_t c0, std::ptrdiff_t c1) {
-        for (; c0 < c1; c0 += kChunk) {
+    // Cells [c0, c1) of a span, whose source moments start at packed place q.
+    auto compute = [&](std::ptrdiff_t c0, std::ptrdiff_t c1, std::ptrdiff_t q) {
+        for (; c0 < c1; c0 += kChunk, q += kChunk) {
             const std::ptrdiff_t n = std::min(kChunk, c1 - c0);
-            for (size_t q = 0; q < slots.size(); ++q)
-                apply_source(ops[q], n, amp ? amp + c0 * nl : nullptr, mom + c0 * nmom,
-                             slots[q].source->values.data() + c0 * slots[q].nd);
+            for (size_t o = 0; o < slots.size(); ++o)
+                apply_source(ops[o], n, amp ? amp + c0 * nl : nullptr, mom + q * nmom,
+                             slots[o].source->values.data() + c0 * slots[o].nd);
         }
     };
-    if (src.rows == nullptr) {
-        compute(0, own.cells());
-        for (OctantSlot& sl : slots) sl.source->zero_rows.reset();
-        return;
-    }
+    std::ptrdiff_t q = 0;
     for (int k = own.lo[2]; k < own.hi[2]; ++k)
         for (int j = own.lo[1]; j < own.hi[1]; ++j) {
             const std::ptrdiff_t row = cell_offset(own, own.lo[0], j, k);
-            const int lo = src.rows->lo(j, k) - own.lo[0], hi = src.rows->hi(j, k) - own.lo[0];
+            const int lo = rows.lo(j, k) - own.lo[0], hi = rows.hi(j, k) - own.lo[0];
             zero(row, row + lo);
-            compute(row + lo, row + hi);
+            compute(row + lo, row + hi, q);
             zero(row + hi, row + own.size(0));
+            q += hi - lo;
         }
-    for (SourceBuffer* b : stale) b->zero_rows = *src.rows;
+    for (SourceBuffer* b : stale) b->zero_rows = rows;
 }
 
 // Moments, fluence and flux of the octants of a group (Kripke's LTimes, moment_kernels.h), one
@@ -128,10 +126,10 @@ void group_sources(const Box& own, const SweepSource& src, const AngularSet& ang
 // written once per group. first: the sweep's first group, which zeroes each row just before it
 // accumulates into it (in cache; a separate fill of the outputs was a 160-byte-per-cell pass
 // over memory every sweep, 9% of the DOM phase on the default cloud).
-// Outside the source rows' spans only the fluence and flux are reduced (a moment operator with
-// no moments) and phi stays 0.
+// phi is packed on the source rows (SweepOutput); outside their spans only the fluence and flux
+// are reduced (a moment operator with no moments).
 void group_moments(const Box& own, const AngularSet& ang, const std::vector<OctantSlot>& slots,
-                   const SourceRows* rows, SweepOutput& out, bool first) {
+                   const SourceRows& rows, SweepOutput& out, bool first) {
     const int nmom = ang.nmom;
     std::vector<OctantMomentOp> ops, fluence_ops;
     for (const OctantSlot& sl : slots) {
@@ -140,29 +138,32 @@ void group_moments(const Box& own, const AngularSet& ang, const std::vector<Octa
         fluence_ops.push_back(make_octant_moment_op(sl.nd, 0, nullptr, oc.weight.data(), oc.dir.data()));
     }
     const int nx = own.size(0);
+    double* phi = out.phi.data();
+    std::ptrdiff_t q = 0;  // packed place of the row's first span cell
     for (int k = own.lo[2]; k < own.hi[2]; ++k)
         for (int j = own.lo[1]; j < own.hi[1]; ++j) {
             const std::ptrdiff_t c = cell_offset(own, own.lo[0], j, k);
+            const int lo = rows.lo(j, k) - own.lo[0], hi = rows.hi(j, k) - own.lo[0];
             if (first) {
-                std::fill_n(out.phi.data() + c * nmom, nx * nmom, 0.0);
+                std::fill_n(phi + q * nmom, (hi - lo) * nmom, 0.0);
                 std::fill_n(out.fluence.data() + c, nx, 0.0);
                 std::fill_n(out.flux.data() + 3 * c, 3 * nx, 0.0);
             }
-            const int lo = rows ? rows->lo(j, k) - own.lo[0] : 0, hi = rows ? rows->hi(j, k) - own.lo[0] : nx;
-            for (size_t q = 0; q < slots.size(); ++q) {
-                const Field<double>& psi = *slots[q].psi;
+            for (size_t o = 0; o < slots.size(); ++o) {
+                const Field<double>& psi = *slots[o].psi;
                 const double* p = &psi(own.lo[0], j, k);
                 const std::ptrdiff_t ps = psi.stride(0);
-                // cells [a, b) of the row with operator op
-                auto reduce = [&](const OctantMomentOp& op, int a, int b) {
+                // cells [a, b) of the row with operator op; their moments (if op has any) at phi_a
+                auto reduce = [&](const OctantMomentOp& op, int a, int b, double* phi_a) {
                     if (b > a)
-                        apply_moments(op, b - a, p + a * ps, ps, out.phi.data() + (c + a) * nmom,
-                                      out.fluence.data() + c + a, out.flux.data() + 3 * (c + a));
+                        apply_moments(op, b - a, p + a * ps, ps, phi_a, out.fluence.data() + c + a,
+                                      out.flux.data() + 3 * (c + a));
                 };
-                reduce(fluence_ops[q], 0, lo);
-                reduce(ops[q], lo, hi);
-                reduce(fluence_ops[q], hi, nx);
+                reduce(fluence_ops[o], 0, lo, phi);
+                reduce(ops[o], lo, hi, phi + q * nmom);
+                reduce(fluence_ops[o], hi, nx, phi);
             }
+            q += hi - lo;
         }
 }
 
@@ -196,6 +197,11 @@ SourceRows::SourceRows(const Box& own, std::initializer_list<const Field<double>
         if (hi_[r] <= lo_[r]) lo_[r] = hi_[r] = own.lo[0];
 }
 
+SourceRows::SourceRows(const Box& own)
+    : own_(own),
+      lo_(static_cast<size_t>(own.size(1)) * static_cast<size_t>(own.size(2)), own.lo[0]),
+      hi_(lo_.size(), own.hi[0]) {}
+
 size_t SourceRows::cells() const {
     size_t n = 0;
     for (size_t r = 0; r < lo_.size(); ++r) n += static_cast<size_t>(hi_[r] - lo_[r]);
@@ -218,8 +224,8 @@ void check_sweep_decomposition(const Decomposition& d) {
 TransportSweeper::TransportSweeper(const Decomposition& d, const AngularSet& ang, double h,
                                    const sweep::SweepOptions& opt, double periodic_tolerance,
                                    SpatialScheme scheme, const SweepBoundary& boundary, bool fixup)
-    : d_(d), ang_(ang), h_(h), opt_(opt), periodic_tol_(periodic_tolerance), scheme_(scheme), bc_(boundary),
-      fixup_(fixup) {
+    : d_(d), ang_(ang), h_(h), opt_(opt), periodic_tol_(periodic_tolerance), every_cell_(d.local()),
+      scheme_(scheme), bc_(boundary), fixup_(fixup) {
     for (int f = 0; f < 6; ++f)
         if (bc_.reflective[static_cast<size_t>(f)] && d.periodic(f / 2))
             throw Error(fmt::format("dom: face {} cannot be both reflective and periodic", kFaceNames[f]));
@@ -418,11 +424,14 @@ void TransportSweeper::reduce_octant(const Field<double>& psi, int o, SweepOutpu
 
 void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
     const Box& own = d_.local();
-    if (src.rows && src.rows->box() != own)
-        throw Error("dom: the sweep's source rows are not on this rank's box (a caller's bug)");
+    const SourceRows& rows = src.rows ? *src.rows : every_cell_;
     const int nmom = ang_.nmom;
-    if (out.phi.owned() != own || out.phi.ncomp() != nmom) {  // else overwritten by the first group_moments
-        out.phi = Field<double>(own, 0, nmom, 0.0);
+    const size_t packed = rows.cells() * static_cast<size_t>(nmom);
+    if (rows.box() != own || src.moments.size() != packed)  // a caller's bug
+        throw Error(fmt::format("dom: the sweep's source rows or moments do not fit this rank's box ({} moments "
+                                "for {} source cells x {})", src.moments.size(), rows.cells(), nmom));
+    out.phi.resize(packed);  // overwritten by the first group_moments
+    if (out.fluence.owned() != own) {
         out.fluence = Field<double>(own, 0, 1, 0.0);
         out.flux = Field<double>(own, 0, 3, 0.0);
     }
@@ -577,7 +586,7 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
         // Sources first (group_sources), so that repeated periodic passes only redo the cheap
         // transport kernel.
         const double t_src = MPI_Wtime();
-        group_sources(own, src, ang_, slots);
+        group_sources(own, src, rows, ang_, slots);
         timing_.moment_seconds += MPI_Wtime() - t_src;
         for (OctantSlot& sl : slots) {
             set_upwind_ghosts(*sl.psi, sl.o);
@@ -608,13 +617,13 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
             out.min_psi = std::min(out.min_psi, min_owned(*sl.psi));
         }
         const double t1 = MPI_Wtime();
-        group_moments(own, ang_, slots, src.rows, out, first_group);
+        group_moments(own, ang_, slots, rows, out, first_group);
         first_group = false;
         timing_.moment_seconds += MPI_Wtime() - t1;
         for (OctantSlot& sl : slots) reduce_octant(*sl.psi, sl.o, out);  // leakage
     }
     if (first_group) {  // no octant had directions: nothing was written
-        out.phi.fill(0.0);
+        std::fill(out.phi.begin(), out.phi.end(), 0.0);
         out.fluence.fill(0.0);
         out.flux.fill(0.0);
     }

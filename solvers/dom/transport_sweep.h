@@ -48,8 +48,8 @@
 // passes; GMRES's operator sweeps start from zero. Local work only, no extra communication.
 // Periodic axes must not be split over ranks.
 //
-// Outputs per sweep (owned cells): the moments phi_k = Σ_n w_n Y_k(Ω_n) psi_n (inside the
-// source rows, SweepSource::rows; 0 outside them), the fluence
+// Outputs per sweep (owned cells): the moments phi_k = Σ_n w_n Y_k(Ω_n) psi_n (of the cells of
+// the source rows, SweepSource::rows, packed), the fluence
 // Σ_n w_n psi_n (W/m²), the flux Σ_n w_n Ω_n psi_n, and the NET power leaving through each
 // non-periodic domain face, Σ_faces h² Σ_n w_n |Ω·n| (psi_out,face - psi_in,face) (W; face
 // value = cell value for the step scheme, the outgoing face value for diamond; psi_in = 0 on
@@ -63,6 +63,7 @@
 #include <initializer_list>
 #include <map>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "solvers/dom/angular_set.h"
@@ -75,14 +76,16 @@ namespace nimbus::dom {
 // The cells of each x row of the owned box where a sweep's source can be nonzero: [lo, hi)
 // spans the row's cells with a nonzero value in any of the given fields (for a band problem:
 // sigma_s, emission and the first-collision amplitudes; band_problem.h). Outside the spans the
-// source is zero and the moments phi are not computed but left 0: their only use is the
+// source is zero and the moments phi are neither computed nor stored: their only use is the
 // scattering source sigma_s phi, zero there. So a sweep builds sources and moments on the spans
-// and only the fluence and flux elsewhere (1 of 5 vector FMAs per direction and cell at L = 3).
-// On the default cloud the spans hold 12% of the cells.
+// and only the fluence and flux elsewhere (1 of 5 vector FMAs per direction and cell at L = 3),
+// and moments are stored packed: nmom values per span cell, in for_each_cell's order. On the
+// default cloud the spans hold 12% of the cells.
 class SourceRows {
 public:
     SourceRows() = default;
     SourceRows(const Box& own, std::initializer_list<const Field<double>*> fields);
+    explicit SourceRows(const Box& own);  // every cell of own
     // Span of row (j, k), in x cell indices; lo == hi when the row has none.
     int lo(int j, int k) const { return lo_[row(j, k)]; }
     int hi(int j, int k) const { return hi_[row(j, k)]; }
@@ -127,19 +130,21 @@ struct SourceBuffer {
 // Per-band inputs of a sweep, all on d.local() with no ghost layer. Non-owning.
 struct SweepSource {
     const Field<double>* kappa = nullptr;    // kappa* (1/m), 1 component
-    const Field<double>* moments = nullptr;  // s_k = kappa* a* chi_l(k) phi_k (+ emission), nmom components
+    // s_k = kappa* a* chi_l(k) phi_k (+ emission): nmom values per cell of the source rows below,
+    // packed in SourceRows::for_each_cell order (every owned cell, x fastest, when rows is null).
+    std::span<const double> moments;
     const Field<double>* amp = nullptr;      // first-collision amplitudes A_l, nl components (nl may be 0)
     int nl = 0;
     // Per octant: nl x nd phase values P_l,n (cell_kernel.h).
     std::array<std::vector<double>, 8> light_phase;
     // Where the source can be nonzero (above), on d.local(); null: every cell. Must cover every
-    // cell where moments or amp is nonzero (the source of this sweep) and every cell where
-    // kappa* a* is (where the next source needs phi, which is left 0 outside the rows).
+    // cell where amp or the moments are nonzero (the source of this sweep) and every cell where
+    // kappa* a* is (where the next source needs phi, which exists on the rows only).
     const SourceRows* rows = nullptr;
 };
 
 struct SweepOutput {
-    Field<double> phi;      // nmom components
+    std::vector<double> phi;  // nmom per cell of the sweep's source rows, packed like SweepSource::moments
     Field<double> fluence;  // 1 component
     Field<double> flux;     // 3 components
     std::array<double, 6> leakage{};
@@ -224,6 +229,7 @@ private:
     sweep::SweepOptions opt_;
     double periodic_tol_;
     double periodic_failure_ = 0.0;  // relative change left where a layer did not converge
+    SourceRows every_cell_;          // the rows of a SweepSource without rows
     std::map<int, Field<double>> psi_;                          // by octant size
     std::array<std::array<std::vector<double>, 4>, 8> coef_;    // cx, cy, cz, csum per octant
     SourceBuffer source_;  // one octant's source

@@ -1,7 +1,7 @@
 // Source rows in the DOM transport sweep (SourceRows, solvers/dom/transport_sweep.h): a sweep
 // that builds sources and moments only on the spans of the rows where the source can be
 // nonzero gives the same fluence, flux and leakage as a sweep over every cell, and the same
-// moments inside the spans (0 outside), for step and diamond, octant overlap 1, 2 and 8, on 1,
+// moments on the spans' cells (the only ones it stores), for step and diamond, octant overlap 1, 2 and 8, on 1,
 // 2 and 3 ranks split along z (slabs) and along x (the spans in global x indices), with spans
 // that reach both ends of their rows; and a sweeper whose source buffers were last written with
 // other rows (their cells outside the new spans nonzero) still gives the right answer.
@@ -54,8 +54,9 @@ TEST(DomSourceRows, SpansCoverTheNonzeroCellsOfEachRow) {
 // absorbing medium (kappa > 0 everywhere), on the 10 x 7 x 8 grid.
 struct Blob {
     Field<double> kappa, moments, amp;
-    SweepSource src;
+    SweepSource src;  // every cell
     SourceRows rows;
+    std::vector<double> packed;  // the moments of the rows' cells, packed (SweepSource::moments)
     Blob(const Decomposition& d, const AngularSet& ang, int cx) {
         const Box& own = d.local();
         kappa = Field<double>(own, 0, 1, 0.0);
@@ -70,36 +71,51 @@ struct Blob {
         });
         rows = SourceRows(own, {&moments, &amp});
         src = test_source::make(ang, kappa, moments, amp);
+        const size_t nm = static_cast<size_t>(ang.nmom);
+        packed.resize(rows.cells() * nm);
+        rows.for_each_cell([&](size_t c, size_t q) { std::copy_n(moments.data() + c * nm, nm, packed.data() + q * nm); });
     }
     SweepSource with_rows() const {
         SweepSource s = src;
         s.rows = &rows;
+        s.moments = packed;
         return s;
     }
 };
 
-// Largest |a - b| over owned cells and components, relative to max |scale| (max over ranks);
-// where keep(i, j, k) is false, b counts as 0.
-template <class Keep>
-double rel_diff(const Field<double>& a, const Field<double>& b, const Field<double>& scale, MPI_Comm comm, Keep keep) {
+// Largest |a - b| over owned cells and components, relative to max |scale| (max over ranks).
+double rel_diff(const Field<double>& a, const Field<double>& b, const Field<double>& scale, MPI_Comm comm) {
     double v[2] = {0.0, 0.0};
     for_each_cell(a.owned(), [&](int i, int j, int k) {
-        for (int c = 0; c < a.ncomp(); ++c)
-            v[0] = std::max(v[0], std::abs(a(i, j, k, c) - (keep(i, j, k) ? b(i, j, k, c) : 0.0)));
+        for (int c = 0; c < a.ncomp(); ++c) v[0] = std::max(v[0], std::abs(a(i, j, k, c) - b(i, j, k, c)));
         for (int c = 0; c < scale.ncomp(); ++c) v[1] = std::max(v[1], std::abs(scale(i, j, k, c)));
     });
     MPI_Allreduce(MPI_IN_PLACE, v, 2, MPI_DOUBLE, MPI_MAX, comm);
     return v[0] / v[1];
 }
 
-// rows: the rows out was swept with (its phi 0 outside them), null for every cell.
-void expect_same_sweep(const SweepOutput& out, const SweepOutput& ref, const SourceRows* rows, MPI_Comm comm,
-                       const std::string& what) {
-    const auto all = [](int, int, int) { return true; };
-    const auto in_rows = [&](int i, int j, int k) { return rows == nullptr || rows->contains(i, j, k); };
-    EXPECT_LT(rel_diff(out.phi, ref.phi, ref.phi, comm, in_rows), 1e-14) << what;
-    EXPECT_LT(rel_diff(out.fluence, ref.fluence, ref.fluence, comm, all), 1e-14) << what;
-    EXPECT_LT(rel_diff(out.flux, ref.flux, ref.fluence, comm, all), 1e-14) << what;
+// out was swept with rows (null: every cell), ref over every cell: out's moments, packed on the
+// rows' cells, are ref's there (relative to ref's largest moment, max over ranks).
+double rel_diff_moments(const SweepOutput& out, const SweepOutput& ref, const SourceRows* rows, int nmom,
+                        MPI_Comm comm) {
+    const size_t nm = static_cast<size_t>(nmom);
+    const SourceRows every(ref.fluence.owned());
+    double v[2] = {0.0, 0.0};
+    EXPECT_EQ(out.phi.size(), (rows ? rows : &every)->cells() * nm);
+    (rows ? rows : &every)->for_each_cell([&](size_t c, size_t q) {
+        for (size_t k = 0; k < nm; ++k) v[0] = std::max(v[0], std::abs(out.phi[q * nm + k] - ref.phi[c * nm + k]));
+    });
+    for (double x : ref.phi) v[1] = std::max(v[1], std::abs(x));
+    MPI_Allreduce(MPI_IN_PLACE, v, 2, MPI_DOUBLE, MPI_MAX, comm);
+    return v[0] / v[1];
+}
+
+// rows: the rows out was swept with, null for every cell.
+void expect_same_sweep(const SweepOutput& out, const SweepOutput& ref, const SourceRows* rows, int nmom,
+                       MPI_Comm comm, const std::string& what) {
+    EXPECT_LT(rel_diff_moments(out, ref, rows, nmom, comm), 1e-14) << what;
+    EXPECT_LT(rel_diff(out.fluence, ref.fluence, ref.fluence, comm), 1e-14) << what;
+    EXPECT_LT(rel_diff(out.flux, ref.flux, ref.fluence, comm), 1e-14) << what;
     for (size_t f = 0; f < 6; ++f)
         EXPECT_NEAR(out.leakage[f], ref.leakage[f], 1e-13 * (1.0 + std::abs(ref.leakage[f]))) << what << ", face " << f;
 }
@@ -122,23 +138,23 @@ TEST(DomSourceRows, SweepOnTheSpansEqualsTheSweepOverEveryCell) {
             SweepOutput ref, out;
             every.sweep(left.src, ref);
             spans.sweep(left.with_rows(), out);
-            expect_same_sweep(out, ref, &left.rows, d.comm(), what + ", left blob");
+            expect_same_sweep(out, ref, &left.rows, ang.nmom, d.comm(), what + ", left blob");
             // The same sweeper, now with other rows: its source buffers hold the left blob's
             // sources, nonzero outside the right blob's spans.
             every.sweep(right.src, ref);
             spans.sweep(right.with_rows(), out);
-            expect_same_sweep(out, ref, &right.rows, d.comm(), what + ", then the right blob");
+            expect_same_sweep(out, ref, &right.rows, ang.nmom, d.comm(), what + ", then the right blob");
             // The same rows again (the buffers' zeros outside the spans are kept, not rewritten).
             every.sweep(right.src, ref);
             spans.sweep(right.with_rows(), out);
-            expect_same_sweep(out, ref, &right.rows, d.comm(), what + ", the right blob again");
+            expect_same_sweep(out, ref, &right.rows, ang.nmom, d.comm(), what + ", the right blob again");
             // Every cell (rows = null), then spans once more.
             every.sweep(left.src, ref);
             spans.sweep(left.src, out);
-            expect_same_sweep(out, ref, nullptr, d.comm(), what + ", every cell after spans");
+            expect_same_sweep(out, ref, nullptr, ang.nmom, d.comm(), what + ", every cell after spans");
             every.sweep(right.src, ref);
             spans.sweep(right.with_rows(), out);
-            expect_same_sweep(out, ref, &right.rows, d.comm(), what + ", spans after every cell");
+            expect_same_sweep(out, ref, &right.rows, ang.nmom, d.comm(), what + ", spans after every cell");
         }
 }
 

@@ -1,9 +1,10 @@
 // The source both DOM sweep tests use (dom_overlap_test.cpp, dom_source_rows_test.cpp): fields
-// kappa, moments and one first-collision amplitude, and a phase value per direction that favours
+// kappa, moments (every cell, no ghost layer) and one first-collision amplitude, and a phase value per direction that favours
 // downward directions, as a sun overhead would.
 #pragma once
 
 #include <algorithm>
+#include <span>
 
 #include "solvers/dom/angular_set.h"
 #include "solvers/dom/transport_sweep.h"
@@ -14,7 +15,7 @@ inline SweepSource make(const AngularSet& ang, const Field<double>& kappa, const
                         const Field<double>& amp) {
     SweepSource src;
     src.kappa = &kappa;
-    src.moments = &moments;
+    src.moments = std::span<const double>(moments.data(), moments.size());  // every cell (no ghosts)
     src.amp = &amp;
     src.nl = 1;
     for (int o = 0; o < 8; ++o) {

@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <span>
 #include <cstdio>
 #include <limits>
 #include <numbers>
@@ -73,7 +74,7 @@ double manufactured_error(int N, SpatialScheme scheme, std::int64_t* fixups = nu
     });
     dom::SweepSource src;
     src.kappa = &kap;
-    src.moments = &mom;
+    src.moments = std::span<const double>(mom.data(), mom.size());
     src.amp = &amp;
     src.nl = 4;
     const int lit = 7;  // octant (+,+,+)
@@ -560,7 +561,7 @@ double absorber_sky_error(SpatialScheme s, int nz) {
     Field<double> kap(own, 0, 1, 1.0), mom(own, 0, ang.nmom, 0.0), amp(own, 0, 1, 0.0);
     dom::SweepSource src;
     src.kappa = &kap;
-    src.moments = &mom;
+    src.moments = std::span<const double>(mom.data(), mom.size());
     src.amp = &amp;
     dom::SweepBoundary bc;
     bc.sky = true;
