@@ -129,7 +129,10 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
             rows.for_each_cell([&](size_t c, size_t i) {
                 ph[i * nm] += y00 * delta[c];
                 if (!first_moments) return;
-                for (int m = 1; m <= 3; ++m) ph[i * nm + static_cast<size_t>(m)] += y1 * current[3 * c + static_cast<size_t>(first_moment_axis(m))];
+                for (int m = 1; m <= 3; ++m) {
+                    const auto axis = static_cast<size_t>(first_moment_axis(m));
+                    ph[i * nm + static_cast<size_t>(m)] += y1 * current[3 * c + axis];
+                }
             });
         }
         double sums[2] = {0.0, 0.0};

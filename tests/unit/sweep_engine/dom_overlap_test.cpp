@@ -27,17 +27,6 @@ struct Case {
     bool sky = false;
 };
 
-// Largest |a - b| over owned cells and components, relative to max |scale| (max over ranks).
-double rel_diff(const Field<double>& a, const Field<double>& b, const Field<double>& scale, MPI_Comm comm) {
-    double v[2] = {0.0, 0.0};
-    for_each_cell(a.owned(), [&](int i, int j, int k) {
-        for (int c = 0; c < a.ncomp(); ++c) v[0] = std::max(v[0], std::abs(a(i, j, k, c) - b(i, j, k, c)));
-        for (int c = 0; c < scale.ncomp(); ++c) v[1] = std::max(v[1], std::abs(scale(i, j, k, c)));
-    });
-    MPI_Allreduce(MPI_IN_PLACE, v, 2, MPI_DOUBLE, MPI_MAX, comm);
-    return v[0] / v[1];
-}
-
 // The same for the moments (packed vectors on every cell).
 double rel_diff(const std::vector<double>& a, const std::vector<double>& b, MPI_Comm comm) {
     double v[2] = {0.0, 0.0};
@@ -96,9 +85,11 @@ TEST(DomOctantOverlap, SweepResultDoesNotDependOnTheOverlap) {
             const SweepOutput out = sweep_once(d, ang, c, overlap);
             ASSERT_EQ(out.phi.size(), ref.phi.size());
             EXPECT_LT(rel_diff(out.phi, ref.phi, d.comm()), 1e-13) << c.name << ", overlap " << overlap;
-            EXPECT_LT(rel_diff(out.fluence, ref.fluence, ref.fluence, d.comm()), 1e-13) << c.name << ", overlap " << overlap;
+            EXPECT_LT(test_source::rel_diff(out.fluence, ref.fluence, ref.fluence, d.comm()), 1e-13)
+                << c.name << ", overlap " << overlap;
             // |F| <= fluence: the flux's round-off scale (its octant sums cancel)
-            EXPECT_LT(rel_diff(out.flux, ref.flux, ref.fluence, d.comm()), 1e-13) << c.name << ", overlap " << overlap;
+            EXPECT_LT(test_source::rel_diff(out.flux, ref.flux, ref.fluence, d.comm()), 1e-13)
+                << c.name << ", overlap " << overlap;
             for (int f = 0; f < 6; ++f)
                 EXPECT_NEAR(out.leakage[static_cast<size_t>(f)], ref.leakage[static_cast<size_t>(f)],
                             1e-12 * (1.0 + std::abs(ref.leakage[static_cast<size_t>(f)])))

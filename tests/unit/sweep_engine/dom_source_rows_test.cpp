@@ -73,7 +73,8 @@ struct Blob {
         src = test_source::make(ang, kappa, moments, amp);
         const size_t nm = static_cast<size_t>(ang.nmom);
         packed.resize(rows.cells() * nm);
-        rows.for_each_cell([&](size_t c, size_t q) { std::copy_n(moments.data() + c * nm, nm, packed.data() + q * nm); });
+        rows.for_each_cell(
+            [&](size_t c, size_t q) { std::copy_n(moments.data() + c * nm, nm, packed.data() + q * nm); });
     }
     SweepSource with_rows() const {
         SweepSource s = src;
@@ -82,17 +83,6 @@ struct Blob {
         return s;
     }
 };
-
-// Largest |a - b| over owned cells and components, relative to max |scale| (max over ranks).
-double rel_diff(const Field<double>& a, const Field<double>& b, const Field<double>& scale, MPI_Comm comm) {
-    double v[2] = {0.0, 0.0};
-    for_each_cell(a.owned(), [&](int i, int j, int k) {
-        for (int c = 0; c < a.ncomp(); ++c) v[0] = std::max(v[0], std::abs(a(i, j, k, c) - b(i, j, k, c)));
-        for (int c = 0; c < scale.ncomp(); ++c) v[1] = std::max(v[1], std::abs(scale(i, j, k, c)));
-    });
-    MPI_Allreduce(MPI_IN_PLACE, v, 2, MPI_DOUBLE, MPI_MAX, comm);
-    return v[0] / v[1];
-}
 
 // out was swept with rows (null: every cell), ref over every cell: out's moments, packed on the
 // rows' cells, are ref's there (relative to ref's largest moment, max over ranks).
@@ -114,8 +104,8 @@ double rel_diff_moments(const SweepOutput& out, const SweepOutput& ref, const So
 void expect_same_sweep(const SweepOutput& out, const SweepOutput& ref, const SourceRows* rows, int nmom,
                        MPI_Comm comm, const std::string& what) {
     EXPECT_LT(rel_diff_moments(out, ref, rows, nmom, comm), 1e-14) << what;
-    EXPECT_LT(rel_diff(out.fluence, ref.fluence, ref.fluence, comm), 1e-14) << what;
-    EXPECT_LT(rel_diff(out.flux, ref.flux, ref.fluence, comm), 1e-14) << what;
+    EXPECT_LT(test_source::rel_diff(out.fluence, ref.fluence, ref.fluence, comm), 1e-14) << what;
+    EXPECT_LT(test_source::rel_diff(out.flux, ref.flux, ref.fluence, comm), 1e-14) << what;
     for (size_t f = 0; f < 6; ++f)
         EXPECT_NEAR(out.leakage[f], ref.leakage[f], 1e-13 * (1.0 + std::abs(ref.leakage[f]))) << what << ", face " << f;
 }
