@@ -66,7 +66,7 @@ public:
     std::string name() const override { return "dom"; }
     nlohmann::json options() const override { return options_json(opt_); }
     void solve(const SolveContext& ctx, DiffuseSolution& out) override;
-    // Peak = about twice the state (3 moment fields, angular fluxes of the largest octant, the
+    // Peak = about twice the state (3 moment arrays, angular fluxes of the largest octant, the
     // band's coefficients, the light sources: state_bytes_per_cell below) per local cell, measured
     // 1.95x and 2.01x on the default cloud at S4 L3 and S8 L7 when the moments covered every cell.
     // Since the twenty-ninth session they cover only the cells that scatter (the source rows,

@@ -17,7 +17,8 @@
 // (ns per cell·direction·band per iteration: total iteration time / (cells · directions ·
 // iterations), this rank's cells) and the sweep-only grind time, the seconds in the sweep
 // engine and in the moment operators (max over ranks), pipeline efficiency (1 - wait/sweep
-// time), leakage per face and the energy balance, memory per cell.
+// time), leakage per face and the energy balance, memory per cell (an upper bound: the moments
+// counted on every cell, though only the cells that scatter hold them, transport_sweep.h).
 // Collective; throws Error on every rank when an iteration does not converge.
 #pragma once
 

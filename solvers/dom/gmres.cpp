@@ -52,8 +52,8 @@ PetscErrorCode shell_mult(Mat A, Vec x, Vec y) {
     const SourceRows& rows = *c->scatter_only.rows;
     const double* ss = c->p->sigma_s.data();
     double* s = c->s.data();
-    rows.for_each_cell([&](size_t i, size_t q) {
-        for (size_t k = 0; k < nmom; ++k) s[q * nmom + k] = ss[i] * c->chi[k] * xv[q * nmom + k];
+    rows.for_each_cell([&](size_t cell, size_t q) {
+        for (size_t k = 0; k < nmom; ++k) s[q * nmom + k] = ss[cell] * c->chi[k] * xv[q * nmom + k];
     });
     if (!c->failure.empty()) {
         PetscCall(VecRestoreArrayRead(x, &xv));
@@ -111,10 +111,10 @@ PetscErrorCode dsa_apply(PC pc, Vec x, Vec y) {
     PetscCall(VecGetArrayRead(x, &xv));
     double* r0 = c->r0.data();  // 0 outside the source rows (never written there)
     double* r1 = c->r1.data();
-    c->rows->for_each_cell([&](size_t i, size_t q) {
-        r0[i] = sqrt4pi * xv[q * nmom];
+    c->rows->for_each_cell([&](size_t cell, size_t q) {
+        r0[cell] = sqrt4pi * xv[q * nmom];
         if (!first_moments) return;
-        for (int m = 1; m <= 3; ++m) r1[3 * i + first_moment_axis(m)] = xv[q * nmom + m] / y1;
+        for (int m = 1; m <= 3; ++m) r1[3 * cell + first_moment_axis(m)] = xv[q * nmom + m] / y1;
     });
     PetscCall(VecRestoreArrayRead(x, &xv));
     try {
@@ -130,10 +130,10 @@ PetscErrorCode dsa_apply(PC pc, Vec x, Vec y) {
     PetscScalar* yv = nullptr;
     PetscCall(VecGetArray(y, &yv));
     // The corrections return to the cells of the Krylov vectors, the source rows' (gmres_band).
-    c->rows->for_each_cell([&](size_t i, size_t q) {
-        yv[q * nmom] += delta[i] / sqrt4pi;
+    c->rows->for_each_cell([&](size_t cell, size_t q) {
+        yv[q * nmom] += delta[cell] / sqrt4pi;
         if (!first_moments) return;
-        for (int m = 1; m <= 3; ++m) yv[q * nmom + m] += y1 * dF[3 * i + first_moment_axis(m)];
+        for (int m = 1; m <= 3; ++m) yv[q * nmom + m] += y1 * dF[3 * cell + first_moment_axis(m)];
     });
     PetscCall(VecRestoreArray(y, &yv));
     return 0;
@@ -182,7 +182,7 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     const int nmom = ang.nmom;
     const size_t nm = static_cast<size_t>(nmom);
     // The Krylov vectors hold the moments of the source rows' cells only, packed (transport_sweep.h):
-    // elsewhere sigma_s is 0, so the moments feed no source, and the sweep leaves them 0.
+    // elsewhere sigma_s is 0, so moments there would feed no source, and the sweep stores none.
     const SourceRows rows = source_rows(p);
     const PetscInt nloc = static_cast<PetscInt>(rows.cells() * nm);
     ShellContext c{&sweeper, &ang, &p, {}, std::vector<double>(rows.cells() * nm, 0.0), {}, {}, 0, {}};
@@ -204,7 +204,7 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     external.light_phase = p.light_phase;
     external.rows = &rows;
     const double y0inv = std::sqrt(4.0 * std::acos(-1.0));
-    rows.for_each_cell([&](size_t i, size_t q) { c.s[q * nm] = y0inv * p.emission.data()[i]; });
+    rows.for_each_cell([&](size_t cell, size_t q) { c.s[q * nm] = y0inv * p.emission.data()[cell]; });
     sweeper.sweep(external, out);
 
     // Owning handles (petsc_support.h): nothing leaks when a check or the DSA set-up throws.
@@ -280,9 +280,9 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     {
         const PetscScalar* xv = nullptr;
         check(VecGetArrayRead(x, &xv), "VecGetArrayRead");
-        rows.for_each_cell([&](size_t i, size_t q) {
-            for (size_t k = 0; k < nm; ++k) c.s[q * nm + k] = p.sigma_s.data()[i] * c.chi[k] * xv[q * nm + k];
-            c.s[q * nm] += y0inv * p.emission.data()[i];
+        rows.for_each_cell([&](size_t cell, size_t q) {
+            for (size_t k = 0; k < nm; ++k) c.s[q * nm + k] = p.sigma_s.data()[cell] * c.chi[k] * xv[q * nm + k];
+            c.s[q * nm] += y0inv * p.emission.data()[cell];
         });
         check(VecRestoreArrayRead(x, &xv), "VecRestoreArrayRead");
     }

@@ -25,8 +25,8 @@
 // cells in the source rows (transport_sweep.h), where source iteration and DSA take the fluence
 // of every cell (the Y_00 moment dominates both).
 // The Krylov vectors hold the moments of the source rows' cells only, packed: elsewhere sigma_s
-// is 0, so those moments feed no source (12.4% of the default cloud's cells; peak memory per
-// rank 1146 -> 573 MiB on it at 2 ranks when they covered every cell).
+// is 0, so those moments feed no source (12.4% of the default cloud's cells; with the moments of
+// the sweeps packed too, peak memory per rank 1146 -> 484 MiB on it at 2 ranks).
 // b costs one sweep of the external (first-collision + emission) source; the initial guess is 0;
 // a last sweep from the converged moments yields the fluence, flux and leakage in `out`. Sweeps
 // per band: iterations + 2 (b, the last one; + 1 per GMRES restart); DSA solves: iterations + 1.

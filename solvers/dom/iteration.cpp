@@ -26,13 +26,13 @@ void make_source_moments(const BandProblem& p, const AngularSet& ang, const Sour
         chi[static_cast<size_t>(k)] = l < static_cast<int>(p.phase.chi.size()) ? p.phase.chi[static_cast<size_t>(l)] : 0.0;
     }
     const double* ss = p.sigma_s.data();
-    const double* q = p.emission.data();
+    const double* em = p.emission.data();
     const double* ph = phi.data();
     double* out = s.data();
     const size_t nm = static_cast<size_t>(nmom);
-    rows.for_each_cell([&](size_t c, size_t i) {
-        for (size_t k = 0; k < nm; ++k) out[i * nm + k] = ss[c] * chi[k] * ph[i * nm + k];
-        out[i * nm] += y0inv * q[c];
+    rows.for_each_cell([&](size_t c, size_t q) {
+        for (size_t k = 0; k < nm; ++k) out[q * nm + k] = ss[c] * chi[k] * ph[q * nm + k];
+        out[q * nm] += y0inv * em[c];
     });
 }
 
@@ -126,12 +126,12 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
             const double* current = dsa->last_current_correction().data();
             const bool first_moments = correct_current && ang.nmom >= 4;
             double* ph = out.phi.data();
-            rows.for_each_cell([&](size_t c, size_t i) {
-                ph[i * nm] += y00 * delta[c];
+            rows.for_each_cell([&](size_t c, size_t q) {
+                ph[q * nm] += y00 * delta[c];
                 if (!first_moments) return;
                 for (int m = 1; m <= 3; ++m) {
                     const auto axis = static_cast<size_t>(first_moment_axis(m));
-                    ph[i * nm + static_cast<size_t>(m)] += y1 * current[3 * c + axis];
+                    ph[q * nm + static_cast<size_t>(m)] += y1 * current[3 * c + axis];
                 }
             });
         }

@@ -74,8 +74,8 @@ struct OctantSlot {
 // chunks of cells with all octants of the group per chunk, so the chunk's source moments are
 // read from memory once; zero elsewhere (written only when the buffer's last rows differ:
 // SourceBuffer). Cells are written in increasing order: the vector stores of a chunk's last cell
-// may run 3 values past it (zeros, moment_kernels.h), into the next cell, written after it (+3
-// at the end of the array).
+// may run 3 values past it (zeros, moment_kernels.h) into the cells after it, which are either
+// written afterwards or a gap that holds zeros anyway (+3 at the end of the array).
 void group_sources(const Box& own, const SweepSource& src, const SourceRows& rows, const AngularSet& ang,
                    std::vector<OctantSlot>& slots) {
     const int nl = src.nl, nmom = ang.nmom;
@@ -427,9 +427,9 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
     const SourceRows& rows = src.rows ? *src.rows : every_cell_;
     const int nmom = ang_.nmom;
     const size_t packed = rows.cells() * static_cast<size_t>(nmom);
-    if (rows.box() != own || src.moments.size() != packed)  // a caller's bug
-        throw Error(fmt::format("dom: the sweep's source rows or moments do not fit this rank's box ({} moments "
-                                "for {} source cells x {})", src.moments.size(), rows.cells(), nmom));
+    check_collective(d_.comm(), rows.box() == own && src.moments.size() == packed,  // else a caller's bug
+                     fmt::format("dom: the sweep's source rows or moments do not fit this rank's box ({} moments "
+                                 "for {} source cells x {})", src.moments.size(), rows.cells(), nmom));
     out.phi.resize(packed);  // overwritten by the first group_moments
     if (out.fluence.owned() != own) {
         out.fluence = Field<double>(own, 0, 1, 0.0);

@@ -138,7 +138,7 @@ struct SweepSource {
     // Per octant: nl x nd phase values P_l,n (cell_kernel.h).
     std::array<std::vector<double>, 8> light_phase;
     // Where the source can be nonzero (above), on d.local(); null: every cell. Must cover every
-    // cell where amp or the moments are nonzero (the source of this sweep) and every cell where
+    // cell where amp is nonzero (the first-collision source of this sweep) and every cell where
     // kappa* a* is (where the next source needs phi, which exists on the rows only).
     const SourceRows* rows = nullptr;
 };

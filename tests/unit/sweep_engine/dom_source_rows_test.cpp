@@ -76,6 +76,8 @@ struct Blob {
         rows.for_each_cell(
             [&](size_t c, size_t q) { std::copy_n(moments.data() + c * nm, nm, packed.data() + q * nm); });
     }
+    Blob(const Blob&) = delete;  // src and its rows point into this Blob
+    Blob& operator=(const Blob&) = delete;
     SweepSource with_rows() const {
         SweepSource s = src;
         s.rows = &rows;
