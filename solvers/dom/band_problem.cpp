@@ -44,6 +44,27 @@ SourceRows source_rows(const BandProblem& p) {
     return SourceRows(p.kappa.owned(), {&p.sigma_s, &p.emission});
 }
 
+std::vector<double> moment_chi(const BandProblem& p, const AngularSet& ang) {
+    std::vector<double> chi;
+    for (int k = 0; k < ang.nmom; ++k) {
+        const auto l = static_cast<size_t>(ang.degree[static_cast<size_t>(k)]);
+        chi.push_back(l < p.phase.chi.size() ? p.phase.chi[l] : 0.0);
+    }
+    return chi;
+}
+
+void make_source_moments(const BandProblem& p, const std::vector<double>& chi, const SourceRows& rows,
+                         const double* phi, double* s, bool with_emission) {
+    const size_t nm = chi.size();
+    const double y0inv = std::sqrt(4.0 * std::acos(-1.0));  // 1 / Y_00
+    const double* ss = p.sigma_s.data();
+    const double* em = p.emission.data();
+    rows.for_each_cell([&](size_t c, size_t q) {
+        for (size_t k = 0; k < nm; ++k) s[q * nm + k] = ss[c] * chi[k] * phi[q * nm + k];
+        if (with_emission) s[q * nm] += y0inv * em[c];
+    });
+}
+
 void add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, const LightTransport& lt,
                        const BandOptics& o, const std::vector<double>& E0, const AngularSet& ang) {
     std::vector<int> lit;  // the lights of lt this problem carries

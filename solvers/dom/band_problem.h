@@ -48,6 +48,13 @@ struct BandProblem {
 // emit or carry a first-collision amplitude.
 SourceRows source_rows(const BandProblem& p);
 
+// Source moments of the sweep from the moments phi, both packed on rows (transport_sweep.h):
+// s_k = sigma_s chi*_l(k) phi_k, plus sqrt(4π) q at k = 0 when with_emission. chi: per moment
+// k of ang, chi*_l(k) (0 beyond the phase's degree), from moment_chi.
+std::vector<double> moment_chi(const BandProblem& p, const AngularSet& ang);
+void make_source_moments(const BandProblem& p, const std::vector<double>& chi, const SourceRows& rows,
+                         const double* phi, double* s, bool with_emission);
+
 // A problem with optics o (kappa per cell = rho o.sigma_t) and no sources yet (emission 0, nl = 0).
 BandProblem make_band_optics(const Medium& m, const BandOptics& o, const Box& own, const AngularSet& ang,
                              bool delta_m);

@@ -31,7 +31,6 @@ void ensure_petsc(MPI_Comm comm) { petsc::ensure_initialized(comm); }
 // What MatMult needs; owned by gmres_band's frame.
 struct ShellContext {
     TransportSweeper* sweeper;
-    const AngularSet* ang;
     const BandProblem* p;
     std::vector<double> chi;  // per moment
     std::vector<double> s;    // source moments, packed on the source rows like the Krylov vectors
@@ -48,13 +47,7 @@ PetscErrorCode shell_mult(Mat A, Vec x, Vec y) {
     PetscCall(MatShellGetContext(A, &c));
     const PetscScalar* xv = nullptr;
     PetscCall(VecGetArrayRead(x, &xv));
-    const size_t nmom = static_cast<size_t>(c->ang->nmom);
-    const SourceRows& rows = *c->scatter_only.rows;
-    const double* ss = c->p->sigma_s.data();
-    double* s = c->s.data();
-    rows.for_each_cell([&](size_t cell, size_t q) {
-        for (size_t k = 0; k < nmom; ++k) s[q * nmom + k] = ss[cell] * c->chi[k] * xv[q * nmom + k];
-    });
+    make_source_moments(*c->p, c->chi, *c->scatter_only.rows, xv, c->s.data(), false);
     if (!c->failure.empty()) {
         PetscCall(VecRestoreArrayRead(x, &xv));
         PetscCall(VecCopy(x, y));
@@ -185,11 +178,7 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     // elsewhere sigma_s is 0, so moments there would feed no source, and the sweep stores none.
     const SourceRows rows = source_rows(p);
     const PetscInt nloc = static_cast<PetscInt>(rows.cells() * nm);
-    ShellContext c{&sweeper, &ang, &p, {}, std::vector<double>(rows.cells() * nm, 0.0), {}, {}, 0, {}};
-    for (int k = 0; k < nmom; ++k) {
-        const int l = ang.degree[static_cast<size_t>(k)];
-        c.chi.push_back(l < static_cast<int>(p.phase.chi.size()) ? p.phase.chi[static_cast<size_t>(l)] : 0.0);
-    }
+    ShellContext c{&sweeper, &p, moment_chi(p, ang), std::vector<double>(rows.cells() * nm, 0.0), {}, {}, 0, {}};
     c.scatter_only.kappa = &p.kappa;
     c.scatter_only.moments = c.s;
     c.scatter_only.nl = 0;
@@ -280,10 +269,7 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     {
         const PetscScalar* xv = nullptr;
         check(VecGetArrayRead(x, &xv), "VecGetArrayRead");
-        rows.for_each_cell([&](size_t cell, size_t q) {
-            for (size_t k = 0; k < nm; ++k) c.s[q * nm + k] = p.sigma_s.data()[cell] * c.chi[k] * xv[q * nm + k];
-            c.s[q * nm] += y0inv * p.emission.data()[cell];
-        });
+        make_source_moments(p, c.chi, rows, xv, c.s.data(), true);
         check(VecRestoreArrayRead(x, &xv), "VecRestoreArrayRead");
     }
     sweeper.sweep(external, out);

@@ -14,28 +14,6 @@
 namespace nimbus::dom {
 namespace {
 
-// Scattering (and emission) source moments s_k = sigma_s chi_l(k) phi_k (+ sqrt(4π) q at k=0)
-// of the cells of the source rows, packed as phi is (transport_sweep.h).
-void make_source_moments(const BandProblem& p, const AngularSet& ang, const SourceRows& rows,
-                         const std::vector<double>& phi, std::vector<double>& s) {
-    const int nmom = ang.nmom;
-    const double y0inv = std::sqrt(4.0 * std::acos(-1.0));  // 1 / Y_00
-    std::vector<double> chi(static_cast<size_t>(nmom));
-    for (int k = 0; k < nmom; ++k) {
-        const int l = ang.degree[static_cast<size_t>(k)];
-        chi[static_cast<size_t>(k)] = l < static_cast<int>(p.phase.chi.size()) ? p.phase.chi[static_cast<size_t>(l)] : 0.0;
-    }
-    const double* ss = p.sigma_s.data();
-    const double* em = p.emission.data();
-    const double* ph = phi.data();
-    double* out = s.data();
-    const size_t nm = static_cast<size_t>(nmom);
-    rows.for_each_cell([&](size_t c, size_t q) {
-        for (size_t k = 0; k < nm; ++k) out[q * nm + k] = ss[c] * chi[k] * ph[q * nm + k];
-        out[q * nm] += y0inv * em[c];
-    });
-}
-
 // The isotropic DSA's own rate is about 0.22 per iteration (isotropic scattering, infinite
 // medium, jobs/dsa_fourier.py); a slower change means an anisotropic mode the current's
 // correction removes. Thin media converge faster (the smoke: 0.025, 0.016) and never pay for it.
@@ -96,6 +74,7 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
     const SourceRows rows = source_rows(p);
     const size_t nm = static_cast<size_t>(ang.nmom);
     std::vector<double> phi(rows.cells() * nm, 0.0), s(rows.cells() * nm, 0.0);
+    const std::vector<double> chi = moment_chi(p, ang);
     Field<double> fluence_old(own, 0, 1, 0.0), flux_old(own, 0, 3, 0.0);
     Field<double> mirror_source(own, 0, 1, 0.0);  // DSA's boundary source on high mirror faces
     bool correct_current = false;  // DSA's current correction, switched on below
@@ -107,7 +86,7 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
     src.light_phase = p.light_phase;
     src.rows = &rows;
     for (int it = 1; it <= max_iterations; ++it) {
-        make_source_moments(p, ang, rows, phi, s);
+        make_source_moments(p, chi, rows, phi.data(), s.data(), true);
         sweeper.sweep(src, out);
         if (dsa) {
             {
