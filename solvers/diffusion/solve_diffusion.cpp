@@ -11,9 +11,11 @@
 #include "solvers/diffusion/linear_solve.h"
 #include "solvers/diffusion/solve_region.h"
 #include "src/core/anderson.h"
+#include "src/core/convergence_outlook.h"
 #include "src/core/error.h"
 #include "src/core/halo.h"
 #include "src/core/log.h"
+#include "src/core/progress.h"
 #include "src/core/report.h"
 
 namespace nimbus::diffusion {
@@ -114,8 +116,11 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
 // fixed-point iteration on kappa_eff = kappa_tr / (3 lambda), lambda = lambda(R) of the previous
 // iterates, until the largest change of U relative to max U is below opt.limiter_tolerance
 // (twice in a row after the first iteration).
+// progress: the run's line over all right-hand sides, of which r are done in done_seconds.
 void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t r,
-                       const DiffusionOptions& opt, Report& report, DiffusionResult& out) {
+                       const DiffusionOptions& opt, Report& report, DiffusionResult& out, Progress& progress,
+                       double done_seconds) {
+    const double start = wall_time();
     DiffusionProblem q;  // p with right-hand side r only (every member but Q0 and G copied)
     q.h = p.h;
     q.n = p.n;
@@ -187,6 +192,12 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
         const size_t h = history.size();
         converged = history[h - 1] < opt.limiter_tolerance &&
                     (h == 1 || history[h - 2] < opt.limiter_tolerance);
+        const int nrhs = static_cast<int>(p.Q0.size());
+        const RunOutlook o = run_outlook(history, opt.limiter_tolerance, wall_time() - start, static_cast<int>(r),
+                                         done_seconds, nrhs);
+        progress.update(o.fraction * nrhs, o.seconds_left, fmt::format("limiter tolerance {:g}", opt.limiter_tolerance),
+                        fmt::format("right-hand side {} of {}, iteration {}, relative change of U {:.2e}", r + 1,
+                                    nrhs, h, history.back()));
         log::debug("diffusion: flux limiter, right-hand side {} iteration {}: relative change of U {:.3e} "
                    "({} Anderson columns, mixing {:g}, {} {} iterations)",
                    r, h, history.back(), mixer.columns_used(), it < kUndampedIterations ? 1.0 : kLateMixing,
@@ -218,7 +229,12 @@ DiffusionResult solve_diffusion(const Decomposition& d, const DiffusionProblem& 
                                 const DiffusionOptions& opt, Report& report) {
     if (opt.flux_limiter == "none") return solve_linear(d, p, opt, report);
     DiffusionResult out;
-    for (size_t r = 0; r < p.Q0.size(); ++r) solve_limited_rhs(d, p, r, opt, report, out);
+    // Progress (rank 0, from 2 s on): right-hand sides done plus the current one's way to the
+    // limiter's tolerance, ETA from its convergence rate (src/core/convergence_outlook.h).
+    Progress progress("diffusion flux limiter", static_cast<double>(p.Q0.size()), d.rank() == 0);
+    const double start = wall_time();
+    for (size_t r = 0; r < p.Q0.size(); ++r) solve_limited_rhs(d, p, r, opt, report, out, progress, wall_time() - start);
+    progress.finish();
     if (p.Q0.empty()) out.region = find_solve_region(d, p, opt.margin);
     return out;
 }

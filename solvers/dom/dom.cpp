@@ -8,12 +8,14 @@
 
 #include "solvers/dom/angular_set.h"
 #include "solvers/dom/band_problem.h"
-#include "solvers/dom/gmres.h"
 #include "solvers/dom/iteration.h"
 #include "solvers/dom/transport_sweep.h"
+#include "src/core/convergence_outlook.h"
 #include "src/core/error.h"
 #include "src/core/halo.h"
 #include "src/core/log.h"
+#include "src/core/progress.h"
+#include "src/core/report.h"
 #include "src/physics/angular_moments.h"
 #include "src/physics/band_groups.h"
 #include "src/scene/emission.h"
@@ -254,8 +256,15 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
     }
     rec["solves"] = nlohmann::json::array();
     double iter_seconds = 0, unknown_iterations = 0;
+    // Progress (rank 0, from 2 s on): solves done plus the current one's way to the tolerance,
+    // ETA from its convergence rate (run_outlook, src/core/convergence_outlook.h).
+    int nsolves = 0, solves_done = 0;
+    for (const BandGroup& group : groups) nsolves += static_cast<int>(group.rhs_weights.size());
+    Progress progress("dom", nsolves, d.rank() == 0);
+    double solves_seconds = 0.0;  // of the completed solves
     for (const BandGroup& group : groups)
         for (size_t r = 0; r < group.rhs_weights.size(); ++r) {
+            const double solve_start = wall_time();
             const std::vector<double>& weight = group.rhs_weights[r];
             const std::vector<std::string> band_names = rhs_band_names(group, r, m.bands);
             nlohmann::json entry = {{"bands", band_names},
@@ -269,11 +278,19 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
             sweeper.reset_periodic_planes();
             if (bc.sky) sweeper.set_sky_radiance(weight[sky_term]);
             dom::SweepOutput sw;
-            const dom::IterationResult res =
-                opt_.iteration == "gmres"
-                    ? dom::gmres_band(d, sweeper, ang, p, opt_.tolerance, opt_.max_iterations, sw, ctx.report)
-                    : dom::iterate_band(d, sweeper, ang, p, opt_.iteration, opt_.tolerance, opt_.max_iterations, sw,
-                                        ctx.report);
+            const double iteration_start = wall_time();
+            const std::string what = fmt::format("solve {} of {} (bands {}; {})", solves_done + 1, nsolves,
+                                                 fmt::join(band_names, ", "),
+                                                 fmt::join(entry["terms"].get<std::vector<std::string>>(), ", "));
+            const dom::IterationMonitor monitor = [&](const std::vector<double>& history) {
+                const RunOutlook o = run_outlook(history, opt_.tolerance, wall_time() - iteration_start, solves_done,
+                                                 solves_seconds, nsolves);
+                progress.update(o.fraction * nsolves, o.seconds_left, fmt::format("tolerance {:.0e}", opt_.tolerance),
+                                fmt::format("{}, iteration {}, relative change {:.2e}", what, history.size(),
+                                            history.back()));
+            };
+            const dom::IterationResult res = dom::iterate_band(d, sweeper, ang, p, opt_.iteration, opt_.tolerance,
+                                                               opt_.max_iterations, sw, ctx.report, monitor);
             entry["converged"] = res.converged;
             entry["iterations"] = res.iterations;
             entry["history"] = res.history;
@@ -298,7 +315,10 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
             const bool sky_lit = bc.sky && weight[sky_term] != 0.0;
             if (sky_lit) uncollided_sky(m, group.optics, sweeper, unc);
             add_to_bands(group, r, p, sw, sky_lit ? &unc : nullptr, out);
+            ++solves_done;
+            solves_seconds += wall_time() - solve_start;
         }
+    progress.finish();
     for (int b = 0; b < m.nbands(); ++b) {
         exchange_halo(out.fluence[static_cast<size_t>(b)], d);
         exchange_halo(out.flux[static_cast<size_t>(b)], d);

@@ -86,6 +86,7 @@ struct KrylovContext {
     Vec work = nullptr;
     PetscInt last_recorded = 0;
     std::vector<double> history;  // ||P^{-1} r_k|| / ||phi_k||, k = 1, 2, ...
+    const IterationMonitor* monitor = nullptr;  // told of each new history entry
 };
 
 // y = P^{-1} x = x + e_0 δ + e_1 δF, the DSA corrections (dsa.h) of the fluence change
@@ -153,6 +154,7 @@ PetscErrorCode converged_test(KSP ksp, PetscInt it, PetscReal rnorm, KSPConverge
     if (it > c->last_recorded) {  // a restart calls the test again with the same it
         c->history.push_back(rel);
         c->last_recorded = it;
+        if (c->monitor && *c->monitor) (*c->monitor)(c->history);
     }
     if (rel <= c->tolerance)
         *reason = KSP_CONVERGED_RTOL;
@@ -165,7 +167,7 @@ PetscErrorCode converged_test(KSP ksp, PetscInt it, PetscReal rnorm, KSPConverge
 
 IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, const AngularSet& ang,
                            const BandProblem& p, double tolerance, int max_iterations, SweepOutput& out,
-                           Report& report, GmresPreconditioner preconditioner) {
+                           Report& report, GmresPreconditioner preconditioner, const IterationMonitor& monitor) {
     const double t0 = MPI_Wtime();
     const MPI_Comm comm = d.comm();
     ensure_petsc(comm);
@@ -224,6 +226,7 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     kc.report = &report;
     kc.tolerance = tolerance;
     kc.max_iterations = max_iterations;
+    kc.monitor = &monitor;
     std::unique_ptr<DiffusionSynthetic> dsa;
     if (preconditioner == GmresPreconditioner::dsa) {
         ScopedTimer t(report, "dsa_setup");

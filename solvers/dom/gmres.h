@@ -30,8 +30,8 @@
 // b costs one sweep of the external (first-collision + emission) source; the initial guess is 0;
 // a last sweep from the converged moments yields the fluence, flux and leakage in `out`. Sweeps
 // per band: iterations + 2 (b, the last one; + 1 per GMRES restart); DSA solves: iterations + 1.
-// The history is the relative change per Krylov iteration; dsa_linear_iterations counts the
-// preconditioner's V-cycles (two per DSA solve).
+// The history is the relative change per Krylov iteration (passed to `monitor` as each is
+// recorded); dsa_linear_iterations counts the preconditioner's V-cycles (two per DSA solve).
 //
 // Collective over d.comm(). PETSc is initialized on first use if the program has not.
 // Throws Error (every rank) when a DSA solve fails; non-convergence is returned (converged false).
@@ -45,6 +45,7 @@ enum class GmresPreconditioner { none, dsa };
 
 IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, const AngularSet& ang,
                            const BandProblem& p, double tolerance, int max_iterations, SweepOutput& out,
-                           Report& report, GmresPreconditioner preconditioner = GmresPreconditioner::dsa);
+                           Report& report, GmresPreconditioner preconditioner = GmresPreconditioner::dsa,
+                           const IterationMonitor& monitor = {});
 
 }  // namespace nimbus::dom

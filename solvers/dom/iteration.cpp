@@ -54,10 +54,11 @@ bool stalled(const std::vector<double>& history) {
 
 IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, const AngularSet& ang,
                              const BandProblem& p, const std::string& method, double tolerance,
-                             int max_iterations, SweepOutput& out, Report& report) {
+                             int max_iterations, SweepOutput& out, Report& report,
+                             const IterationMonitor& monitor) {
     if (method == "gmres" || method == "gmres-plain")
         return gmres_band(d, sweeper, ang, p, tolerance, max_iterations, out, report,
-                          method == "gmres" ? GmresPreconditioner::dsa : GmresPreconditioner::none);
+                          method == "gmres" ? GmresPreconditioner::dsa : GmresPreconditioner::none, monitor);
     const double t0 = MPI_Wtime();
     IterationResult res;
     const Box& own = d.local();
@@ -127,6 +128,7 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
         if (!res.history.empty() && change > kCurrentFromRatio * res.history.back()) correct_current = true;
         res.history.push_back(change);
         res.iterations = it;
+        if (monitor) monitor(res.history);
         log::debug("dom: {} iteration {}: relative change {:.3e}{}", method, it, change,
                    dsa ? fmt::format(" (DSA: {} PFMG-PCG iterations so far)", res.dsa_linear_iterations) : "");
         std::swap(phi, out.phi);  // phi: the current iterate, feeds the next source

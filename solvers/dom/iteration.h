@@ -11,6 +11,7 @@
 // non-convergence into an Error); the last sweep's fields are in `out`.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -43,11 +44,16 @@ inline constexpr int kStallWindow = 20;
 inline constexpr double kStallGrowth = 2.0;
 bool stalled(const std::vector<double>& history);
 
+// Called after each outer iteration (source iteration, DSA; GMRES: each Krylov iteration) with
+// the history so far, on every rank alike; it must not communicate. The model's progress line.
+using IterationMonitor = std::function<void(const std::vector<double>& history)>;
+
 // method: "source", "dsa", or the Krylov methods of gmres.h: "gmres" (DSA-preconditioned) and
 // "gmres-plain" (no preconditioner, for comparison), which this forwards to gmres_band.
 IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, const AngularSet& ang,
                              const BandProblem& p, const std::string& method, double tolerance,
-                             int max_iterations, SweepOutput& out, Report& report);
+                             int max_iterations, SweepOutput& out, Report& report,
+                             const IterationMonitor& monitor = {});
 
 // "1: 3.2e-01, 2: 1.1e-01, ..." (at most the first and last few entries).
 std::string format_history(const std::vector<double>& history);

@@ -1,5 +1,9 @@
 #include "src/core/progress.h"
 
+#include <fmt/format.h>
+
+#include <cmath>
+
 #include "src/core/log.h"
 #include "src/core/report.h"
 
@@ -25,11 +29,12 @@ void Progress::update(double done) {
     log::info("{}: {:5.1f}% ({:.1f} s elapsed, ETA {:.1f} s)", what_, 100.0 * frac, last_ - start_, eta);
 }
 
-void Progress::update(double done, double eta, const std::string& until) {
+void Progress::update(double done, double eta, const std::string& until, const std::string& detail) {
     if (!due()) return;
     const double frac = total_ > 0 ? done / total_ : 0.0;
-    log::info("{}: {:5.1f}% ({:.1f} s elapsed, ETA {:.1f} s at the {})", what_, 100.0 * frac, last_ - start_, eta,
-              until);
+    const std::string eta_text = std::isfinite(eta) ? fmt::format("ETA {:.1f} s", eta) : std::string("ETA unknown");
+    log::info("{}: {:5.1f}% ({:.1f} s elapsed, {} at the {}){}", what_, 100.0 * frac, last_ - start_, eta_text, until,
+              detail.empty() ? "" : "; " + detail);
 }
 
 void Progress::finish() {

@@ -12,8 +12,9 @@ public:
     // Reports that `done` units of `total` are complete (not collective).
     void update(double done);
     // The same with the caller's ETA, for phases that may stop before `total` (a time budget,
-    // a target error): `eta` seconds to the stop named by `until` ("time budget", ...).
-    void update(double done, double eta, const std::string& until);
+    // a target error, a tolerance): `eta` seconds to the stop named by `until` ("time budget",
+    // ...; not finite: "ETA unknown"), and `detail` (if any) after the figures.
+    void update(double done, double eta, const std::string& until, const std::string& detail = {});
     void finish();
 
 private:

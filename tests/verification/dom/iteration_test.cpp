@@ -8,6 +8,8 @@
 #include <cmath>
 #include <vector>
 
+#include "solvers/dom/angular_set.h"
+#include "solvers/dom/band_problem.h"
 #include "solvers/dom/dom.h"
 #include "solvers/dom/iteration.h"
 #include "src/core/error.h"
@@ -188,6 +190,31 @@ TEST(DomIteration, StallDetection) {
     EXPECT_FALSE(dom::stalled(d));  // too short to tell
     d.push_back(diverging[2 * kStallWindow - 1]);
     EXPECT_TRUE(dom::stalled(d));
+}
+
+// The iteration tells its monitor of every iteration, with the history so far (source iteration
+// with DSA and GMRES alike).
+TEST(DomIteration, MonitorSeesEveryIteration) {
+    for (const char* method : {"dsa", "gmres"}) {
+        test::DomWorld w = cloud(MPI_COMM_WORLD);
+        DomOptions o;
+        o.order = 4;
+        o.legendre_order = 3;
+        const dom::AngularSet ang = dom::make_angular_set(o);
+        dom::BandProblem p = dom::make_band_optics(w.m, 0, w.d.local(), ang, true);
+        dom::add_light_sources(p, w.d, w.m, w.light, 0, ang);
+        dom::TransportSweeper sweeper(w.d, ang, w.m.grid.h, {}, 1e-7);
+        dom::SweepOutput out;
+        std::vector<std::vector<double>> seen;
+        const auto r = dom::iterate_band(w.d, sweeper, ang, p, method, 1e-6, 50, out, w.report,
+                                         [&](const std::vector<double>& h) { seen.push_back(h); });
+        EXPECT_TRUE(r.converged) << method;
+        ASSERT_EQ(seen.size(), r.history.size()) << method;
+        ASSERT_GE(seen.size(), 2u) << method;
+        for (size_t i = 0; i < seen.size(); ++i)
+            EXPECT_EQ(seen[i], std::vector<double>(r.history.begin(), r.history.begin() + static_cast<std::ptrdiff_t>(i + 1)))
+                << method << ", call " << i;
+    }
 }
 
 // DSA corrects the current as well as the isotropic error (dsa.h). Here (16³ cube, tau 20,
