@@ -52,6 +52,26 @@ bool stalled(const std::vector<double>& history) {
     return recent > kStallGrowth * before;
 }
 
+bool blew_up(const std::vector<double>& norms) {
+    if (norms.empty()) return false;
+    if (!std::isfinite(norms.back())) return true;
+    return norms.front() > 0.0 && norms.back() > kBlowUp * norms.front();
+}
+
+namespace {
+
+// Whether every owned cell's fluence is finite, on all ranks (collective).
+bool all_finite(const Field<double>& f, MPI_Comm comm) {
+    int finite = 1;
+    for_each_cell(f.owned(), [&](int i, int j, int k) {
+        if (!std::isfinite(f(i, j, k))) finite = 0;
+    });
+    MPI_Allreduce(MPI_IN_PLACE, &finite, 1, MPI_INT, MPI_MIN, comm);
+    return finite == 1;
+}
+
+}  // namespace
+
 IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, const AngularSet& ang,
                              const BandProblem& p, const std::string& method, double tolerance,
                              int max_iterations, SweepOutput& out, Report& report,
@@ -86,9 +106,16 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
     src.nl = p.nl;
     src.light_phase = p.light_phase;
     src.rows = &rows;
+    std::vector<double> norms;  // of the fluence, per iteration (blew_up)
     for (int it = 1; it <= max_iterations; ++it) {
         make_source_moments(p, chi, rows, phi.data(), s.data(), true);
         sweeper.sweep(src, out);
+        // A diverged iterate must not reach DSA's hypre solve (NaN there is hypre's error print).
+        if (!all_finite(out.fluence, d.comm())) {
+            res.stalled = true;
+            res.divergence = fmt::format("the fluence of iteration {} is not finite", it);
+            break;
+        }
         if (dsa) {
             {
                 // Ranks arrive unevenly from the sweep: keep that wait out of the solve's timer.
@@ -128,7 +155,16 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
         if (!res.history.empty() && change > kCurrentFromRatio * res.history.back()) correct_current = true;
         res.history.push_back(change);
         res.iterations = it;
+        norms.push_back(std::sqrt(sums[1]));
         if (monitor) monitor(res.history);
+        if (blew_up(norms)) {
+            res.stalled = true;
+            res.divergence = std::isfinite(norms.back())
+                                 ? fmt::format("the fluence has grown to {:.1e} times its first iterate's",
+                                               norms.back() / norms.front())
+                                 : fmt::format("the fluence of iteration {} is not finite", it);
+            break;
+        }
         log::debug("dom: {} iteration {}: relative change {:.3e}{}", method, it, change,
                    dsa ? fmt::format(" (DSA: {} PFMG-PCG iterations so far)", res.dsa_linear_iterations) : "");
         std::swap(phi, out.phi);  // phi: the current iterate, feeds the next source
@@ -140,6 +176,8 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
         }
         if (stalled(res.history)) {
             res.stalled = true;
+            res.divergence = fmt::format("the relative change has stayed above {:g} times its lowest value for {} "
+                                         "iterations", kStallGrowth, kStallWindow);
             break;
         }
     }

@@ -25,7 +25,8 @@ namespace nimbus::dom {
 
 struct IterationResult {
     bool converged = false;
-    bool stalled = false;            // stopped early: the iteration diverges (stalled())
+    bool stalled = false;            // stopped early: the iteration diverges (stalled(), blew_up())
+    std::string divergence;          // why, when stalled
     int iterations = 0;
     std::vector<double> history;     // relative change after each iteration
     int dsa_linear_iterations = 0;   // summed over the DSA solves
@@ -43,6 +44,17 @@ struct IterationResult {
 inline constexpr int kStallWindow = 20;
 inline constexpr double kStallGrowth = 2.0;
 bool stalled(const std::vector<double>& history);
+
+// A divergence stalled() cannot see: the fluence grows by a constant factor G per iteration, so
+// the relative change sits at 1 - 1/G and sets no growing record (source iteration with
+// model.dom.legendre_order 8 at S4 and g = -0.99: G ~ 3, change ~0.66, until the fluence
+// overflowed after ~325 iterations and the change of Inf and NaN passed for convergence). The
+// iteration stops as diverging when the fluence's norm (every owned cell, all ranks) exceeds
+// kBlowUp times its first iterate's. Converging iterations stay far below: the norm's growth from
+// the first iterate is the multiplication of the scattering orders, ~1/(1 - spectral radius)
+// (about 100 on the tau-100 cube's source iteration). A fluence that is not finite stops it too.
+inline constexpr double kBlowUp = 1e12;
+bool blew_up(const std::vector<double>& norms);
 
 // Called after each outer iteration (source iteration, DSA; GMRES: each Krylov iteration) with
 // the history so far, on every rank alike; it must not communicate. The model's progress line.

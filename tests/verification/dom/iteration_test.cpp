@@ -6,12 +6,15 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
+#include <string>
 #include <vector>
 
 #include "solvers/dom/angular_set.h"
 #include "solvers/dom/band_problem.h"
 #include "solvers/dom/dom.h"
 #include "solvers/dom/iteration.h"
+#include "solvers/light/sun_transmittance.h"
 #include "src/core/error.h"
 #include "tests/support/mpi_test.h"
 #include "tests/verification/dom/dom_world.h"
@@ -190,6 +193,91 @@ TEST(DomIteration, StallDetection) {
     EXPECT_FALSE(dom::stalled(d));  // too short to tell
     d.push_back(diverging[2 * kStallWindow - 1]);
     EXPECT_TRUE(dom::stalled(d));
+}
+
+// blew_up (iteration.h): the norm past kBlowUp times the first, or not finite; converging
+// sequences (growth ~1/(1 - rho) from the first iterate) stay far below.
+TEST(DomIteration, BlowUpDetection) {
+    EXPECT_FALSE(dom::blew_up({}));
+    EXPECT_FALSE(dom::blew_up({0.0, 5.0}));  // nothing to compare with
+    std::vector<double> converging, diverging;
+    for (int i = 0; i < 2000; ++i) {
+        converging.push_back(1.0 - std::pow(0.999, i + 1));  // source iteration at rho 0.999
+        EXPECT_FALSE(dom::blew_up(converging)) << i;
+    }
+    for (int i = 0; i < 40; ++i) diverging.push_back(std::pow(3.0, i));
+    std::vector<double> d;
+    for (double x : diverging) {
+        d.push_back(x);
+        if (dom::blew_up(d)) break;
+    }
+    EXPECT_EQ(d.size(), 27u);  // 3^26 = 2.5e12 > 1e12 > 3^25
+    EXPECT_TRUE(dom::blew_up({1.0, std::numeric_limits<double>::infinity()}));
+    EXPECT_TRUE(dom::blew_up({1.0, std::numeric_limits<double>::quiet_NaN()}));
+}
+
+// The divergence the QA sweep found (thirtieth session): strong backscattering (g = -0.99) with a
+// Legendre order beyond what S4 integrates (L = 8) grows the fluence ~3x per iteration at a flat
+// relative change of ~0.66, which the stall test does not see; the fluence overflowed after ~325
+// iterations and the Inf/NaN change passed for convergence. Now: an Error that says it diverges.
+TEST(DomIteration, GeometricBlowUpIsAnError) {
+    for (const char* method : {"source", "dsa"}) {
+        const CubeRun r = test::solve_thick_cube(8, 8.0, 0.99, "step", method, 500, -0.99, 8);
+        EXPECT_FALSE(r.converged) << method;
+        EXPECT_NE(r.error.find("diverges"), std::string::npos) << method << ": " << r.error;
+        EXPECT_NE(r.error.find("legendre_order <= 3"), std::string::npos) << method << ": " << r.error;
+        EXPECT_LT(r.iterations, 60) << method;  // ~27 at a growth of 3 per iteration
+        if (test::world_rank() == 0)
+            std::printf("g -0.99, S4 L8, %s: %s\n", method, r.error.substr(0, 160).c_str());
+    }
+}
+
+// Negative fluence from the truncated phase function's lobes (g = -0.9 at S4 L3: down to -2.5% of
+// the peak) is reported per band (and warned about); S8 L7 stays above -1e-3 of the peak (-3e-4),
+// and the forward-scattering sphere has none.
+TEST(DomIteration, NegativeFluenceIsReported) {
+    struct Case {
+        double g;
+        int order, legendre_order;
+        bool negative;
+    };
+    for (const Case c : {Case{-0.9, 4, 3, true}, Case{-0.9, 8, 7, false}, Case{0.7, 4, 3, false}}) {
+        // A sphere of optical diameter 4 in a 16 x 16 x 12 box, lit obliquely (the light pass
+        // computes its transmittance): empty cells reached from it only at the scattering angles
+        // of the truncated phase function's negative lobe get negative fluence (as
+        // scenes/sphere_ground.toml at g = -0.9, found by the QA sweep).
+        test::DomWorld w(MPI_COMM_WORLD, {16, 16, 12}, 0.5, BandOptics{"gray", 1.0, 0.9, c.g});
+        for_each_cell(w.d.local(), [&](int i, int j, int k) {
+            const double r2 = std::pow(i - 7.5, 2) + std::pow(j - 7.5, 2) + std::pow(k - 5.5, 2);
+            w.m.rho(i, j, k) = r2 < 16 ? 1.0 : 0.0;
+        });
+        w.light = compute_light_transport(w.d, w.m, {DirectionalLight{"sun", normalized(Vec3{0.5, 0.3, -0.81}), {1.0}}},
+                                          w.report);
+        DomOptions o;
+        o.order = c.order;
+        o.legendre_order = c.legendre_order;
+        o.iteration = "gmres";
+        DiffuseSolution sol;
+        make_dom_model(o)->solve(w.ctx(), sol);
+        double min = 0.0, max = 0.0;
+        for_each_cell(sol.fluence[0].owned(), [&](int i, int j, int k) {
+            min = std::min(min, sol.fluence[0](i, j, k));
+            max = std::max(max, sol.fluence[0](i, j, k));
+        });
+        MPI_Allreduce(MPI_IN_PLACE, &min, 1, MPI_DOUBLE, MPI_MIN, MPI_COMM_WORLD);
+        MPI_Allreduce(MPI_IN_PLACE, &max, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+        const auto& rec = w.report.values()["dom"];
+        const bool reported = rec.contains("negative_fluence");
+        if (test::world_rank() == 0)
+            std::printf("g %.1f, S%d L%d: min/max fluence %.2e, reported %d\n", c.g, c.order, c.legendre_order,
+                        min / max, reported);
+        EXPECT_EQ(reported, c.negative) << c.g << " S" << c.order;
+        EXPECT_EQ(min < -1e-3 * max, c.negative) << c.g << " S" << c.order;
+        if (reported) {
+            EXPECT_GT(rec["negative_fluence"]["gray"]["cells"].get<int>(), 0);
+            EXPECT_DOUBLE_EQ(rec["negative_fluence"]["gray"]["min"].get<double>(), min);
+        }
+    }
 }
 
 // The iteration tells its monitor of every iteration, with the history so far (source iteration
