@@ -232,8 +232,7 @@ int DiffusionSynthetic::solve(const Field<double>& r0, const Field<double>* r1, 
     // iterate_band stops a non-finite fluence before DSA; this is the backstop (hypre would print
     // its own multi-line error for Inf or NaN input).
     if (!std::isfinite(b_norm))
-        throw Error("dom: the DSA correction's right-hand side is not finite: the iteration diverges; use "
-                    "model.dom.iteration = \"gmres\"");
+        throw Error("dom: the DSA correction's right-hand side is not finite: the transport iteration diverges");
     if (b_norm == 0.0) {
         zero_box(delta_);
         zero_box(current_);

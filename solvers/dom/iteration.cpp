@@ -110,17 +110,19 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
     for (int it = 1; it <= max_iterations; ++it) {
         make_source_moments(p, chi, rows, phi.data(), s.data(), true);
         sweeper.sweep(src, out);
-        // A diverged iterate must not reach DSA's hypre solve (NaN there is hypre's error print).
-        if (!all_finite(out.fluence, d.comm())) {
-            res.stalled = true;
-            res.divergence = fmt::format("the fluence of iteration {} is not finite", it);
-            break;
-        }
         if (dsa) {
+            bool finite = true;
             {
-                // Ranks arrive unevenly from the sweep: keep that wait out of the solve's timer.
+                // Ranks arrive unevenly from the sweep: the check's reduction waits for them, which
+                // stays out of the solve's timer. A diverged iterate must not reach DSA's hypre
+                // solve (NaN there is hypre's own error print); without DSA, blew_up sees it.
                 ScopedTimer w(report, "dsa_wait");
-                MPI_Barrier(d.comm());
+                finite = all_finite(out.fluence, d.comm());
+            }
+            if (!finite) {
+                res.stalled = true;
+                res.divergence = fmt::format("the fluence of iteration {} is not finite", it);
+                break;
             }
             ScopedTimer t(report, "dsa_solve");
             mirror_source.fill(0.0);
@@ -156,13 +158,18 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
         res.history.push_back(change);
         res.iterations = it;
         norms.push_back(std::sqrt(sums[1]));
-        if (monitor) monitor(res.history);
+        if (monitor) {
+            try {  // progress only: a failure to log must not end (or, on one rank, hang) the solve
+                monitor(res.history);
+            } catch (...) {
+            }
+        }
         if (blew_up(norms)) {
             res.stalled = true;
             res.divergence = std::isfinite(norms.back())
                                  ? fmt::format("the fluence has grown to {:.1e} times its first iterate's",
                                                norms.back() / norms.front())
-                                 : fmt::format("the fluence of iteration {} is not finite", it);
+                                 : fmt::format("the fluence's norm at iteration {} is not finite (overflow)", it);
             break;
         }
         log::debug("dom: {} iteration {}: relative change {:.3e}{}", method, it, change,

@@ -58,6 +58,7 @@ bool blew_up(const std::vector<double>& norms);
 
 // Called after each outer iteration (source iteration, DSA; GMRES: each Krylov iteration) with
 // the history so far, on every rank alike; it must not communicate. The model's progress line.
+// Whatever it throws is dropped (it may run inside a PETSc callback).
 using IterationMonitor = std::function<void(const std::vector<double>& history)>;
 
 // method: "source", "dsa", or the Krylov methods of gmres.h: "gmres" (DSA-preconditioned) and

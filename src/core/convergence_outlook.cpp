@@ -18,7 +18,9 @@ ConvergenceOutlook convergence_outlook(const std::vector<double>& history, doubl
     const size_t m = std::min<size_t>(3, n - 1);  // ratios in the rate
     const double before = m > 0 ? history[n - 1 - m] : 0.0;
     const double rate = m > 0 && before > 0.0 ? std::pow(last / before, 1.0 / static_cast<double>(m)) : kUnknown;
-    o.remaining_iterations = rate > 0.0 && rate < 1.0 ? std::ceil(std::log(tolerance / last) / std::log(rate)) : kUnknown;
+    // ceil of the exact count; the 1e-9 keeps round-off (4.000000000000001) from adding one.
+    o.remaining_iterations =
+        rate > 0.0 && rate < 1.0 ? std::ceil(std::log(tolerance / last) / std::log(rate) - 1e-9) : kUnknown;
     return o;
 }
 

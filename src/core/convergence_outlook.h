@@ -9,8 +9,10 @@ namespace nimbus {
 
 // Where one solve stands, from its history of relative changes: the share of the way from the
 // first change to the tolerance on a log scale (0..1; 1 once below it), and the iterations still
-// needed at the geometric rate of the last three (fewer at the start; NaN when there is no rate
-// yet or it is not below 1, i.e. the change is not falling).
+// needed at the geometric rate of the last three ratios of successive changes (fewer at the start;
+// NaN when there is no rate yet or it is not below 1, i.e. the change is not falling). An
+// iteration that stops on two changes in a row below the tolerance (the flux limiter) takes
+// one more than this says.
 struct ConvergenceOutlook {
     double fraction = 0.0;
     double remaining_iterations = 0.0;

@@ -22,6 +22,8 @@ TEST(ConvergenceOutlook, FromTheHistory) {
     ConvergenceOutlook o = outlook({1.0, 0.1, 1e-2});
     EXPECT_NEAR(o.fraction, 0.5, 1e-12);
     EXPECT_NEAR(o.remaining_iterations, 2.0, 1e-12);
+    // Exactly geometric: 4 more to 1e-6, where log(1e-4) / log(0.1) rounds to 4.000000000000001.
+    EXPECT_EQ(convergence_outlook({1.0, 0.1, 0.01}, 1e-6).remaining_iterations, 4.0);
     // The rate is the geometric mean of the last three ratios (0.1, 0.5, 0.5 -> 0.292): 5 more
     // iterations to 1e-4 from 0.0225 (the last ratio alone would say 8, all four 6).
     o = outlook({1.0, 0.9, 0.09, 0.045, 0.0225});
