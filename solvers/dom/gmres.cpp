@@ -154,12 +154,7 @@ PetscErrorCode converged_test(KSP ksp, PetscInt it, PetscReal rnorm, KSPConverge
     if (it > c->last_recorded) {  // a restart calls the test again with the same it
         c->history.push_back(rel);
         c->last_recorded = it;
-        if (c->monitor && *c->monitor) {
-            try {  // progress only; nothing may unwind through PETSc's frames
-                (*c->monitor)(c->history);
-            } catch (...) {
-            }
-        }
+        if (c->monitor) notify(*c->monitor, c->history);
     }
     if (rel <= c->tolerance)
         *reason = KSP_CONVERGED_RTOL;

@@ -158,12 +158,7 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
         res.history.push_back(change);
         res.iterations = it;
         norms.push_back(std::sqrt(sums[1]));
-        if (monitor) {
-            try {  // progress only: a failure to log must not end (or, on one rank, hang) the solve
-                monitor(res.history);
-            } catch (...) {
-            }
-        }
+        notify(monitor, res.history);
         if (blew_up(norms)) {
             res.stalled = true;
             res.divergence = std::isfinite(norms.back())

@@ -60,6 +60,15 @@ bool blew_up(const std::vector<double>& norms);
 // the history so far, on every rank alike; it must not communicate. The model's progress line.
 // Whatever it throws is dropped (it may run inside a PETSc callback).
 using IterationMonitor = std::function<void(const std::vector<double>& history)>;
+// Calls m (if set) with the history, dropping what it throws: progress only, and a throw on one
+// rank (only rank 0 logs) would leave the others in the next reduction, or unwind through PETSc.
+inline void notify(const IterationMonitor& m, const std::vector<double>& history) noexcept {
+    if (!m) return;
+    try {
+        m(history);
+    } catch (...) {
+    }
+}
 
 // method: "source", "dsa", or the Krylov methods of gmres.h: "gmres" (DSA-preconditioned) and
 // "gmres-plain" (no preconditioner, for comparison), which this forwards to gmres_band.
