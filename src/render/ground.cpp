@@ -92,6 +92,13 @@ double GroundShading::side_tau(size_t l, double qx, double qy) const {
     return (1 - fz) * ((1 - ft) * at(k0, t0) + ft * at(k0, t1)) + fz * ((1 - ft) * at(k1, t0) + ft * at(k1, t1));
 }
 
+double GroundShading::radiance_bound(int b) const {
+    if (albedo_.empty()) return 0.0;
+    double E = 0.0;
+    for (const auto& l : in_.light.lights) E += std::abs(band_value(l.E0, b)) * std::max(0.0, -l.w.z);
+    return albedo_[static_cast<size_t>(b)] / std::numbers::pi * E;
+}
+
 bool GroundShading::shade(const Vec3& o, const Vec3& d, double* L) const {
     if (!active_ || !(d.z < 0.0)) return false;
     const Grid& grid = in_.medium.grid;

@@ -36,6 +36,9 @@ public:
     // For the ray o + t d (t > 0): if it hits the ground at a point whose column this rank
     // owns, writes the ground radiance per band into L and returns true.
     bool shade(const Vec3& o, const Vec3& d, double* L) const;
+    // An upper bound of shade()'s L in band b on every rank: the unshadowed ground,
+    // (albedo_b / π) Σ_l E0_{l,b} max(0, -w_l·z); 0 without a ground.
+    double radiance_bound(int b) const;
 
 private:
     // tau_rho of light l where the ray from ground point (qx, qy) (cells) toward the light

@@ -9,6 +9,8 @@
 //   A_b += T_b rho sigma_s,b w,
 // and the compositor adds T_front A_b H_carried (composite.h). H_spec is the value at the
 // piece's first step with rho > 0: the carried value when no piece in front had medium.
+// Early termination is march.h's first test alone, max_b T_b < eps: H has no cheap bound, so
+// the per-pixel bound of march.h does not apply to this march.
 #pragma once
 
 #include <bit>

@@ -54,6 +54,7 @@ MarchView make_march_view(const ViewVolume& v) {
     mv.block_shift = ViewVolume::kBlockShift;
     mv.nbands = v.nbands;
     mv.sigma_t = v.sigma_t.data();
+    mv.radiance_bound = v.radiance_bound.data();
     mv.uniform_sigma = std::all_of(v.sigma_t.begin(), v.sigma_t.end(),
                                    [&](double s) { return s == v.sigma_t.front(); });
     return mv;
@@ -272,6 +273,13 @@ Image render_image(const RenderInputs& in, const Decomposition& d, Report& repor
         volume = build_view_volume(in, d, camera->position());
     });
     ground.emplace(in, d);  // collective itself (an MPI_Allreduce): not inside run_collective
+    // Early termination's S_b (march.h): the largest |J_b| / kappa_b on any rank, or the
+    // radiance of the sky or the ground behind the volume if larger.
+    MPI_Allreduce(MPI_IN_PLACE, volume.radiance_bound.data(), nb, MPI_DOUBLE, MPI_MAX, d.comm());
+    for (int b = 0; b < nb; ++b) {
+        double& S = volume.radiance_bound[static_cast<size_t>(b)];
+        S = std::max({S, std::abs(band_value(scene.background.color, b)), ground->radiance_bound(b)});
+    }
     {
         ScopedTimer t(report, "balance");
         volume = balance_view_volume(std::move(volume), d, *camera);

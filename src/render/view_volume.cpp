@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "src/core/error.h"
@@ -101,6 +102,7 @@ ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, con
     v.nbands = nb;
     for (const auto& band : m.bands) v.sigma_t.push_back(band.sigma_t);
     v.data = Field<float>(d.local(), 1, 1 + nb, 0.0f);
+    v.radiance_bound.assign(static_cast<size_t>(nb), 0.0);
 
     const bool emits = rs.mode == RenderMode::emission || rs.mode == RenderMode::emission_absorption;
     const bool scatters = rs.mode == RenderMode::single_unshadowed || rs.mode == RenderMode::scattering;
@@ -166,7 +168,13 @@ ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, con
                 if (!sources.empty()) J[bb] += emission_radiance(emitted_power(sources, m.rho, b, i, j, k, src_cell));
             }
         }
-        for (int b = 0; b < nb; ++b) cell[1 + b] = static_cast<float>(J[static_cast<size_t>(b)]);
+        for (int b = 0; b < nb; ++b) {
+            cell[1 + b] = static_cast<float>(J[static_cast<size_t>(b)]);
+            // J / kappa as the march will see it (the stored floats).
+            double& S = v.radiance_bound[static_cast<size_t>(b)];
+            S = std::max(S, std::abs(static_cast<double>(cell[1 + b])) /
+                                (static_cast<double>(cell[0]) * v.sigma_t[static_cast<size_t>(b)]));
+        }
     });
     build_occupancy(v);
     return v;

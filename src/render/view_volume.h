@@ -32,6 +32,10 @@ struct ViewVolume {
     Int3 nblocks{0, 0, 0};
     std::vector<std::uint8_t> occupied;   // nblocks x-fastest; 1 = may hold density
     Box occupied_cells;                   // bounding box of the occupied blocks' cells (may be empty)
+    // Per band, the bound S_b of march.h's early termination: build_view_volume sets the largest
+    // |J_b| / kappa_b of this rank's cells; the ray caster takes the maximum over the ranks and
+    // the background's radiance.
+    std::vector<double> radiance_bound;
 
     int block_index(int i, int j, int k) const {
         return (((k - owned.lo[2]) >> kBlockShift) * nblocks[1] +

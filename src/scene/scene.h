@@ -126,8 +126,8 @@ enum class RenderMode {
 struct RenderSpec {
     RenderMode mode = RenderMode::scattering;
     double step = 0.5;                 // ray-march step, in cells
-    double early_termination = 1e-6;   // stop a ray once its transmittance falls below this; the
-                                       // image then depends on the rank count by at most this, relative
+    double early_termination = 1e-6;   // stop a ray once what lies behind can change its pixel by
+                                       // at most this fraction, in every band (march.h)
     std::vector<double> emission_color{1.0};  // C per band for the emission modes
     double exposure = 1.0;             // PNG preview: value * exposure before sRGB encoding
 };
