@@ -16,19 +16,25 @@
 // Without attenuation (emission only, Max 1995 §3 eq. 5): C_b += J_b ds, T_b = 1.
 // The march jumps over empty occupancy blocks without sampling.
 //
-// Early termination, bounded per pixel. S_b = MarchView::radiance_bound[b] bounds |J_b / kappa_b|
-// over the volume and the background's radiance (a trilinear sample's J / kappa lies between
-// its cells' values: both are the same convex combination). Behind a step where the piece has
-// C_b and T_b, the rest of the ray adds T_b Σ T'(1 - e) J/kappa + T_b T' L_bg, at most T_b S_b
-// in size, and keeping T_b (its value at the cut) for what lies behind changes that by the same
-// bound. So the march stops once, for every band,
-//   T_b < eps   and   T_b S_b <= eps C_b,
-// which moves the pixel by at most eps of its own radiance (and alpha = 1 - T by < eps). A
-// piece marched by one rank of many knows neither the C nor the T in front of it, but the
-// pixel's error is then T_front T_b S_b <= eps T_front C_b, and those terms sum to at most
-// eps C_pixel: the bound holds on every decomposition, so images on different rank counts
-// agree to 2 eps relative. (The first test alone, T_b < eps, let a dim surface in front of a
-// bright source, as in scenes/duct.toml, lose or gain up to 20% by rank count.)
+// Early termination, bounded per pixel. Let S_b be the largest of |J_b| / max(kappa_b, 1/L)
+// over the cells (L: the domain's diagonal, the longest chord) and of the background's radiance.
+// A trilinear sample has |J| <= S (kappa + 1/L) (the same convex combination of both), so
+// behind a step with transmittance T_b the rest of the ray adds at most
+//   Σ T' |J| w <= S Σ T' (1 - e) + S T_b L/L <= 2 S T_b   (w = (1 - e)/kappa <= ds),
+// the background included (T_end L_bg <= T_end S). Stopping there leaves out the rest of this
+// piece and composites whatever lies behind it with T_b instead of the true, smaller T: two
+// terms each of size <= 2 T_b S_b and of the same sign when J >= 0 everywhere, so the error is
+// at most B_b T_b with B_b = 2 S_b, or 4 S_b when some J < 0 (the P1 in-scatter of a flux
+// pointing away from the camera). MarchView::radiance_bound holds B_b. The march stops once,
+// for every band,
+//   T_b < eps   and   T_b B_b <= eps C_b,
+// which moves the pixel by at most eps of its radiance (and alpha = 1 - T by < eps). A piece
+// marched by one rank of many knows neither the C nor the T in front of it, but the pixel's
+// error is then at most T_front T_b B_b <= eps T_front C_b, and those terms sum to eps times
+// the pixel's radiance (its positive contributions, if J < 0 somewhere): the bound holds on
+// every decomposition, so images on different rank counts agree to 2 eps per pixel, plus
+// float32 rounding. The first test alone, T_b < eps, let a dim surface in front of a bright
+// source, as in scenes/duct.toml, lose or gain up to 20% by rank count.
 #pragma once
 
 #include <algorithm>
@@ -58,7 +64,7 @@ struct MarchView {
     int nbands = 1;
     const double* sigma_t = nullptr;
     bool uniform_sigma = false;      // all bands share sigma_t: one exponential per step
-    const double* radiance_bound = nullptr;  // S_b per band (early termination, header comment)
+    const double* radiance_bound = nullptr;  // B_b per band (early termination, header comment)
 };
 
 // Early termination (header comment): whether what lies behind a piece with C and T can move

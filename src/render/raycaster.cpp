@@ -273,13 +273,13 @@ Image render_image(const RenderInputs& in, const Decomposition& d, Report& repor
         volume = build_view_volume(in, d, camera->position());
     });
     ground.emplace(in, d);  // collective itself (an MPI_Allreduce): not inside run_collective
-    // Early termination's S_b (march.h): the largest |J_b| / kappa_b on any rank, or the
-    // radiance of the sky or the ground behind the volume if larger.
-    MPI_Allreduce(MPI_IN_PLACE, volume.radiance_bound.data(), nb, MPI_DOUBLE, MPI_MAX, d.comm());
+    std::vector<double> sky, ground_bound;
     for (int b = 0; b < nb; ++b) {
-        double& S = volume.radiance_bound[static_cast<size_t>(b)];
-        S = std::max({S, std::abs(band_value(scene.background.color, b)), ground->radiance_bound(b)});
+        sky.push_back(band_value(scene.background.color, b));
+        ground_bound.push_back(ground->radiance_bound(b));
     }
+    finish_radiance_bound(volume, sky, ground_bound, d);  // early termination's bound (march.h)
+    report.values()["render"]["termination_bound"] = volume.radiance_bound;
     {
         ScopedTimer t(report, "balance");
         volume = balance_view_volume(std::move(volume), d, *camera);
@@ -305,8 +305,6 @@ Image render_image(const RenderInputs& in, const Decomposition& d, Report& repor
     }
     volume = ViewVolume{};  // free the march data before compositing
 
-    std::vector<double> sky;
-    for (int b = 0; b < nb; ++b) sky.push_back(band_value(scene.background.color, b));
     Image image;
     {
         ScopedTimer t(report, "composite");

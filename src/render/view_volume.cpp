@@ -1,6 +1,7 @@
 #include "src/render/view_volume.h"
 
 #include <fmt/format.h>
+#include <mpi.h>
 
 #include <algorithm>
 #include <cmath>
@@ -102,7 +103,8 @@ ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, con
     v.nbands = nb;
     for (const auto& band : m.bands) v.sigma_t.push_back(band.sigma_t);
     v.data = Field<float>(d.local(), 1, 1 + nb, 0.0f);
-    v.radiance_bound.assign(static_cast<size_t>(nb), 0.0);
+    v.radiance_bound.assign(static_cast<size_t>(nb) + 1, 0.0);  // + the flag "some J < 0"
+    const double kappa_floor = 1.0 / norm(m.grid.extent());
 
     const bool emits = rs.mode == RenderMode::emission || rs.mode == RenderMode::emission_absorption;
     const bool scatters = rs.mode == RenderMode::single_unshadowed || rs.mode == RenderMode::scattering;
@@ -170,14 +172,28 @@ ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, con
         }
         for (int b = 0; b < nb; ++b) {
             cell[1 + b] = static_cast<float>(J[static_cast<size_t>(b)]);
-            // J / kappa as the march will see it (the stored floats).
+            // |J| / max(kappa, 1/L) as the march will see it (the stored floats; march.h).
+            const double Jf = cell[1 + b];
+            const double kappa = static_cast<double>(cell[0]) * v.sigma_t[static_cast<size_t>(b)];
             double& S = v.radiance_bound[static_cast<size_t>(b)];
-            S = std::max(S, std::abs(static_cast<double>(cell[1 + b])) /
-                                (static_cast<double>(cell[0]) * v.sigma_t[static_cast<size_t>(b)]));
+            S = std::max(S, std::abs(Jf) / std::max(kappa, kappa_floor));
+            if (Jf < 0) v.radiance_bound.back() = 1.0;
         }
     });
     build_occupancy(v);
     return v;
+}
+
+void finish_radiance_bound(ViewVolume& v, const std::vector<double>& sky,
+                           const std::vector<double>& ground_bound, const Decomposition& d) {
+    const int nb = v.nbands;
+    MPI_Allreduce(MPI_IN_PLACE, v.radiance_bound.data(), nb + 1, MPI_DOUBLE, MPI_MAX, d.comm());
+    const double k = v.radiance_bound.back() > 0 ? 4.0 : 2.0;
+    v.radiance_bound.pop_back();
+    for (int b = 0; b < nb; ++b) {
+        const auto bb = static_cast<size_t>(b);
+        v.radiance_bound[bb] = k * std::max({v.radiance_bound[bb], std::abs(sky[bb]), ground_bound[bb]});
+    }
 }
 
 }  // namespace nimbus

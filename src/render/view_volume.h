@@ -9,7 +9,7 @@
 // is empty when rho = 0 on all of its cells and a 1-cell apron, so any trilinear sample whose
 // nearest cell lies in the block reads only zeros (J = 0 wherever rho = 0) and can be skipped;
 // the bounding box of the occupied blocks lets a ray skip the empty margins in one step.
-// Not collective; no MPI.
+// Not collective (no MPI) except finish_radiance_bound.
 #pragma once
 
 #include <cstdint>
@@ -32,9 +32,9 @@ struct ViewVolume {
     Int3 nblocks{0, 0, 0};
     std::vector<std::uint8_t> occupied;   // nblocks x-fastest; 1 = may hold density
     Box occupied_cells;                   // bounding box of the occupied blocks' cells (may be empty)
-    // Per band, the bound S_b of march.h's early termination: build_view_volume sets the largest
-    // |J_b| / kappa_b of this rank's cells; the ray caster takes the maximum over the ranks and
-    // the background's radiance.
+    // March.h's early-termination bound B_b per band. build_view_volume sets the largest
+    // |J_b| / max(kappa_b, 1/L) of this rank's cells (L: the domain's diagonal) and, after the
+    // bands, 1 if some J < 0 else 0; finish_radiance_bound turns that into B_b on every rank.
     std::vector<double> radiance_bound;
 
     int block_index(int i, int j, int k) const {
@@ -47,6 +47,12 @@ struct ViewVolume {
 // Expects in.medium.rho, in.light.tau_rho (scattering) and in.diffuse fields on d.local() with
 // at least 1 ghost layer; throws Error otherwise. Not collective (the caller makes errors so).
 ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, const Vec3& camera);
+
+// Collective over d.comm(). March.h's B_b from build_view_volume's per-rank values:
+// S_b = the largest over the ranks, the sky's radiance sky[b] and ground_bound[b];
+// B_b = 2 S_b, or 4 S_b when some rank has J < 0.
+void finish_radiance_bound(ViewVolume& v, const std::vector<double>& sky,
+                           const std::vector<double>& ground_bound, const Decomposition& d);
 
 // (Re)computes v.nblocks, v.occupied and v.occupied_cells from v.owned and v.data (owned box
 // and its ghost layer filled). Not collective.

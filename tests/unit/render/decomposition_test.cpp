@@ -7,12 +7,14 @@
 //    ceil(L / (step h)) equal steps, sampled at midpoints), trilinear rho with 0 outside the
 //    domain, every step sampled, exact per-step integration, to 1e-5 relative.
 //  * Early termination (march.h) moves each pixel by at most render.early_termination of its own
-//    radiance, on the world communicator and alone: a dim glowing cube with a source 10^7 times
-//    brighter hidden 15-30 optical depths inside (transmittance < 1e-6 on the way in), where
-//    cutting every ray at T < 1e-6 loses the hidden source's ~10% share of the pixels.
+//    radiance (+ float32 rounding), on the world communicator and alone: a dim glowing cube
+//    with a source 10^7 times brighter hidden 15-20 optical depths inside (where cutting every
+//    ray at T < 1e-6 loses up to 82% of a pixel), and a glowing layer before an absorber with
+//    a bright sky behind and a near-empty cell (3 bands); the bound's value is checked too.
 #include <gtest/gtest.h>
 
 #include <iostream>
+#include <numbers>
 
 #include "src/physics/lights.h"
 #include "tests/support/mpi_test.h"
@@ -170,61 +172,118 @@ TEST(RenderDecomposition, MatchesBruteForceMarchThroughEmptySpace) {
     std::cout << "[ brute force ] max relative difference " << max_rel << "\n";
 }
 
-// A cube of optical thickness 1.5 per cell glowing weakly everywhere (q1) and 10^7 times more
-// strongly in 6³ central cells (across the slab boundary of 2 ranks). No lights, no diffuse field:
-// J = q where the sources are. The hidden source shows through 15-20 optical depths.
-TEST(RenderDecomposition, EarlyTerminationCutsEachPixelByAtMostItsShare) {
+// Early termination against the uncut march (eps = 0, one rank), per pixel and band: on the
+// world communicator and alone, every pixel within eps of its radiance plus the float32 floor
+// of compositing (march.h's bound). Returns the run's report values for the caller's checks.
+struct CutRun {
+    long samples_cut = 0, samples_uncut = 0;
+    nlohmann::json render;
+};
+
+template <class Rho>
+CutRun expect_cut_within_eps(const Scene& s, Rho&& rho, const Image* without = nullptr,
+                             int* lit_through = nullptr) {
+    constexpr double eps = 1e-6, kFloat32Floor = 3e-7;
+    const Grid g = make_grid(s.grid);
+    CutRun out;
+    auto render = [&](MPI_Comm comm, double e, long& samples) {
+        Scene sc = s;
+        sc.render.early_termination = e;
+        const auto w = test::make_world(comm, g, sc, rho);
+        Report report;
+        const Image image = render_image(RenderInputs{sc, w.medium, w.light, w.diffuse}, *w.d, report);
+        samples = report.values()["render"]["samples"].get<long>();  // rank 0's sum
+        out.render = report.values()["render"];
+        return image;
+    };
+    long n_world = 0;
+    const Image exact = render(MPI_COMM_SELF, 0.0, out.samples_uncut);
+    const Image world = render(MPI_COMM_WORLD, eps, n_world);
+    const Image self = render(MPI_COMM_SELF, eps, out.samples_cut);
+    if (test::world_rank() != 0) return out;
+    double max_world = 0, max_self = 0;
+    for (int y = 0; y < exact.height; ++y)
+        for (int x = 0; x < exact.width; ++x)
+            for (int c = 0; c < s.nbands(); ++c) {
+                const double want = exact.pixel(x, y)[c];
+                if (!(want > 0)) continue;
+                if (without && c == 0 && want > 1.05 * without->pixel(x, y)[0]) ++*lit_through;
+                max_world = std::max(max_world, std::abs(world.pixel(x, y)[c] - want) / want);
+                max_self = std::max(max_self, std::abs(self.pixel(x, y)[c] - want) / want);
+                EXPECT_TRUE(test::close_rel(world.pixel(x, y)[c], want, eps + kFloat32Floor)) << x << "," << y << " c" << c;
+                EXPECT_TRUE(test::close_rel(self.pixel(x, y)[c], want, eps + kFloat32Floor)) << x << "," << y << " c" << c;
+            }
+    EXPECT_LT(out.samples_cut, out.samples_uncut);  // the cut does save steps
+    std::cout << "[ early termination ] max relative change " << max_world << " (" << test::world_size()
+              << " ranks), " << max_self << " (1 rank); samples " << out.samples_cut << " of "
+              << out.samples_uncut << "\n";
+    return out;
+}
+
+// Looking down at the front face y = 0 of a 24³ cube: the rays cross the z slab boundaries.
+Scene cube_scene() {
     Scene s;
     s.grid.n = {24, 24, 24};
     s.grid.cell_size = 0.1;
-    s.bands = {BandOptics{"gray", 15.0, 0.8, 0.0}};
     s.render.mode = RenderMode::scattering;
     s.background.color = {0.0};
-    s.sources = {SourceSpec{{0.0, 0.0, 0.0}, {2.4, 2.4, 2.4}, {1.0}},
-                 SourceSpec{{0.9, 0.9, 0.9}, {1.5, 1.5, 1.5}, {1e7}}};
-    // Looking down at the front face: the rays to the hidden source cross the z slab boundary.
     s.camera.position = {0.5, -1.5, 1.5};
     s.camera.look_at = {0.5, 0.5, 0.5};
     s.camera.fov_deg = 25;
     s.camera.width = 64;
     s.camera.height = 48;
+    return s;
+}
+
+// A cube of optical thickness 1.5 per cell glowing weakly everywhere (q1) and 10^7 times more
+// strongly in 6³ central cells (across the slab boundary of 2 ranks). No lights, no diffuse
+// field: J = q where the sources are. The hidden source shows through 15-20 optical depths;
+// cutting at T < 1e-6 alone loses up to 82% of a pixel on 1 rank and adds 140% on 2.
+TEST(RenderDecomposition, EarlyTerminationCutsEachPixelByAtMostItsShare) {
+    Scene s = cube_scene();
+    s.bands = {BandOptics{"gray", 15.0, 0.8, 0.0}};
+    s.sources = {SourceSpec{{0.0, 0.0, 0.0}, {2.4, 2.4, 2.4}, {1.0}},
+                 SourceSpec{{0.9, 0.9, 0.9}, {1.5, 1.5, 1.5}, {1e7}}};
     const Grid g = make_grid(s.grid);
     auto cube = [&](int i, int j, int k) { return test::inside_domain(g.n, i, j, k) ? 1.0 : 0.0; };
-    auto render = [&](MPI_Comm comm, double eps, long& samples) {
-        Scene sc = s;
-        sc.render.early_termination = eps;
-        const auto w = test::make_world(comm, g, sc, cube);
-        Report report;
-        const Image image = render_image(RenderInputs{sc, w.medium, w.light, w.diffuse}, *w.d, report);
-        samples = report.values()["render"]["samples"].get<long>();  // rank 0's sum
-        return image;
-    };
-    long n_exact = 0, n_world = 0, n_self = 0;
-    const Image exact = render(MPI_COMM_SELF, 0.0, n_exact);
-    const Image world = render(MPI_COMM_WORLD, 1e-6, n_world);
-    const Image self = render(MPI_COMM_SELF, 1e-6, n_self);
-    Scene dim = s;  // without the hidden source: what the cut at T < 1e-6 alone would show
+    Scene dim = s;  // without the hidden source
     dim.sources.pop_back();
     const auto w_dim = test::make_world(MPI_COMM_SELF, g, dim, cube);
     const Image without = test::render(dim, w_dim);
-    if (test::world_rank() != 0) return;
     int lit_through = 0;
-    double max_world = 0, max_self = 0;
-    for (int y = 0; y < exact.height; ++y)
-        for (int x = 0; x < exact.width; ++x) {
-            const double want = exact.pixel(x, y)[0];
-            if (!(want > 0)) continue;
-            lit_through += want > 1.05 * without.pixel(x, y)[0];
-            max_world = std::max(max_world, std::abs(world.pixel(x, y)[0] - want) / want);
-            max_self = std::max(max_self, std::abs(self.pixel(x, y)[0] - want) / want);
-            EXPECT_TRUE(test::close_rel(world.pixel(x, y)[0], want, 3e-6)) << x << "," << y;
-            EXPECT_TRUE(test::close_rel(self.pixel(x, y)[0], want, 3e-6)) << x << "," << y;
-        }
+    const CutRun run = expect_cut_within_eps(s, cube, &without, &lit_through);
+    if (test::world_rank() != 0) return;
     EXPECT_GT(lit_through, 50);  // the hidden source adds more than 5% to many pixels
-    EXPECT_LT(n_self, n_exact);  // and the cut does save steps
-    std::cout << "[ early termination ] " << lit_through << " pixels lit through; max relative change "
-              << max_world << " (" << test::world_size() << " ranks), " << max_self << " (1 rank); samples "
-              << n_self << " of " << n_exact << "\n";
+    // B = 2 S, S = the hidden source's q / kappa (J >= 0 everywhere; march.h).
+    const double S = 1e7 / (4 * std::numbers::pi) / 15.0;
+    EXPECT_NEAR(run.render["termination_bound"][0].get<double>(), 2 * S, 1e-6 * S);
+}
+
+// Three bands (the float lanes of the march), a glowing front layer (3 cells) before 21 cells
+// of absorber (2-3 optical depths per cell), a sky 1000 times brighter than the glow behind
+// it, and one cell of density 1e-30 in the glowing layer, whose J / kappa is 10^30 times the
+// others': the bound must count the sky (without it, S is the thin cell's q L, 12 times
+// smaller in band r, and pixels move by up to 6e-6) and must stay finite (J / max(kappa, 1/L):
+// with J / kappa it is infinite and no ray is ever cut).
+TEST(RenderDecomposition, EarlyTerminationCountsTheSkyBehindAndThinCells) {
+    Scene s = cube_scene();
+    s.bands = {BandOptics{"r", 20.0, 0.8, 0.0}, BandOptics{"g", 25.0, 0.8, 0.0}, BandOptics{"b", 30.0, 0.8, 0.0}};
+    s.sources = {SourceSpec{{0.0, 0.0, 0.0}, {2.4, 0.3, 2.4}, {1.0, 2.0, 3.0}}};
+    const double q = 1.0 / (4 * std::numbers::pi);  // the glow's J / kappa is q / 20 in every band
+    s.background.color = {1000 * q / 20, 1000 * q / 20, 1000 * q / 20};
+    const Grid g = make_grid(s.grid);
+    auto rho = [&](int i, int j, int k) {
+        if (!test::inside_domain(g.n, i, j, k)) return 0.0;
+        return i == 3 && j == 1 && k == 20 ? 1e-30 : 1.0;
+    };
+    const CutRun run = expect_cut_within_eps(s, rho);
+    if (test::world_rank() != 0) return;
+    // S = max(sky, the thin cell's q_b L) with L = sqrt(3) 2.4 m, the domain's diagonal.
+    const double L = std::sqrt(3.0) * 2.4;
+    for (int b = 0; b < 3; ++b) {
+        const double S = std::max(1000 * q / 20, (b + 1) * q * L);
+        EXPECT_NEAR(run.render["termination_bound"][b].get<double>(), 2 * S, 1e-6 * S) << "band " << b;
+    }
 }
 
 }  // namespace
