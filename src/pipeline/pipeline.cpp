@@ -5,6 +5,8 @@
 #include <fmt/format.h>
 #include <petscversion.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <vector>
 #include <fstream>
@@ -167,6 +169,20 @@ void check_finite_solution(const DiffuseSolution& diffuse, const Decomposition& 
                                 model, bad[0], bad[1]));
 }
 
+void check_finite_image(const Image& image, MPI_Comm comm) {
+    auto finite = [](float v) { return std::isfinite(v); };
+    std::int64_t bad = static_cast<std::int64_t>(image.rgba.size()) -
+                       std::count_if(image.rgba.begin(), image.rgba.end(), finite) +
+                       static_cast<std::int64_t>(image.stderr_rgb.size()) -
+                       std::count_if(image.stderr_rgb.begin(), image.stderr_rgb.end(), finite);
+    MPI_Allreduce(MPI_IN_PLACE, &bad, 1, MPI_INT64_T, MPI_SUM, comm);
+    if (bad > 0)
+        throw Error(fmt::format("the image has {} non-finite values (NaN or Inf): a radiance beyond float32 "
+                                "(3.4e38) or a failed render; nothing was written (check render.emission_color, "
+                                "the lights' and the sources' strengths)",
+                                bad));
+}
+
 Scene load_run_scene(MPI_Comm comm, const RunOptions& opts) {
     Scene scene;
     run_collective(comm, [&] {
@@ -235,6 +251,7 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
         } else {
             image = render_image(RenderInputs{scene, medium, light, diffuse}, d, report);
         }
+        check_finite_image(image, d.comm());
     }
 
     const fs::path stem = fs::path(scene.output.dir) / scene.output.name;

@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "src/model/model.h"
+#include "src/render/image.h"
 #include "src/scene/scene.h"
 
 namespace nimbus {
@@ -39,5 +40,9 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene);
 // model failed (an overflow, a diverged solve), and the run says so instead of writing it.
 // Collective over d.comm(): throws the same Error on every rank, with the counts.
 void check_finite_solution(const DiffuseSolution& diffuse, const Decomposition& d, const std::string& model);
+
+// Likewise the image (held by rank 0 of comm, empty elsewhere): a NaN or Inf in any pixel
+// (radiance, alpha or standard error) is an Error on every rank, with the count.
+void check_finite_image(const Image& image, MPI_Comm comm);
 
 }  // namespace nimbus

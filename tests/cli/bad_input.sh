@@ -58,6 +58,10 @@ expect_error "albedo" "${small[@]}" --set "optics[0].albedo=1.5"
 expect_error 'optics\[1\].g: .*g = 1 must satisfy |g| < 1' "${small[@]}" --set "optics[1].g=1.0"
 expect_error "zero-size" --set "grid.n=[0,8,8]"
 expect_error "looks at nothing" "${small[@]}" --set "camera.look_at=[0.5,-1.3,0.42]"
+# J = C kappa beyond float32 in the view volume (it used to give a NaN image and exit 0).
+expect_error "view source J = 5e+38 W/(m³ sr) of band gray at cell (3, 3, 3) is beyond float32" \
+  "$scenes/dense_cube.toml" --set "grid.n=[12,12,12]" --set "camera.resolution=[16,12]" --set model.name=diffusion \
+  --set render.mode=emission_absorption --set render.emission_color=3e38 --set medium.density=2
 expect_error "has 100 bytes but the grid needs 2048" "$tmp/raw.toml"
 expect_error "missing.raw" "$tmp/missing.toml"
 expect_error "sources\[0\] covers no cell with density" "$tmp/dark_source.toml"

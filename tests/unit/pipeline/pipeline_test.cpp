@@ -150,5 +150,27 @@ TEST(Pipeline, NonFiniteFieldsAreAnErrorOnEveryRank) {
     }
 }
 
+// The image lives on rank 0: a NaN or Inf there (radiance, alpha or standard error) stops the
+// run on every rank with the count; a finite image passes.
+TEST(Pipeline, NonFiniteImageIsAnErrorOnEveryRank) {
+    Image image;
+    if (test::world_rank() == 0) {
+        image = Image(4, 3);
+        image.stderr_rgb.assign(4 * 3 * 3, 0.1f);
+    }
+    EXPECT_NO_THROW(check_finite_image(image, MPI_COMM_WORLD));
+    if (test::world_rank() == 0) {
+        image.pixel(2, 1)[0] = INFINITY;
+        image.pixel(3, 2)[3] = std::nanf("");
+        image.stderr_rgb[5] = std::nanf("");
+    }
+    try {
+        check_finite_image(image, MPI_COMM_WORLD);
+        ADD_FAILURE() << "a non-finite image accepted";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("the image has 3 non-finite values"), std::string::npos) << e.what();
+    }
+}
+
 }  // namespace
 }  // namespace nimbus
