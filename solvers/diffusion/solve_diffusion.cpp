@@ -133,6 +133,7 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
     DiffusionResult res = solve_linear(d, q, opt, report, r, 0);  // P1 with the cap: the first iterate
     const double floor = 1.0 / transport_cap(res.region, p, opt);
     std::vector<double> history;
+    double first_seconds = 0.0;
     int linear_iterations = res.stats[0].iterations;
     bool converged = false;
     // Anderson acceleration (src/core/anderson.h) of lambda <- lambda(R(U(lambda))), depth 5,
@@ -193,7 +194,9 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
         converged = history[h - 1] < opt.limiter_tolerance &&
                     (h == 1 || history[h - 2] < opt.limiter_tolerance);
         const int nrhs = static_cast<int>(p.Q0.size());
-        const RunOutlook o = run_outlook(history, opt.limiter_tolerance, wall_time() - start, static_cast<int>(r),
+        const double seconds = wall_time() - start;
+        if (h == 1) first_seconds = seconds;  // the first iteration carries the P1 solve before it
+        const RunOutlook o = run_outlook(history, opt.limiter_tolerance, seconds, first_seconds, static_cast<int>(r),
                                          done_seconds, nrhs);
         progress.update(o.fraction * nrhs, o.seconds_left, fmt::format("limiter tolerance {:g}", opt.limiter_tolerance),
                         fmt::format("right-hand side {} of {}, iteration {}, relative change of U {:.2e}", r + 1,

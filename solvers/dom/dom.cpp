@@ -329,8 +329,11 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
             const std::string what = fmt::format("solve {} of {} (bands {}; {})", solves_done + 1, nsolves,
                                                  fmt::join(band_names, ", "),
                                                  fmt::join(entry["terms"].get<std::vector<std::string>>(), ", "));
+            double first_seconds = 0.0;  // when the first iteration (with DSA's set-up) ended
             const dom::IterationMonitor monitor = [&](const std::vector<double>& history) {
-                const RunOutlook o = run_outlook(history, opt_.tolerance, wall_time() - iteration_start, solves_done,
+                const double seconds = wall_time() - iteration_start;
+                if (history.size() == 1) first_seconds = seconds;
+                const RunOutlook o = run_outlook(history, opt_.tolerance, seconds, first_seconds, solves_done,
                                                  solves_seconds, nsolves);
                 progress.update(o.fraction * nsolves, o.seconds_left, fmt::format("tolerance {:.0e}", opt_.tolerance),
                                 fmt::format("{}, iteration {}, relative change {:.2e}", what, history.size(),

@@ -24,13 +24,16 @@ ConvergenceOutlook convergence_outlook(const std::vector<double>& history, doubl
     return o;
 }
 
-RunOutlook run_outlook(const std::vector<double>& history, double tolerance, double seconds, int done,
-                       double done_seconds, int total) {
+RunOutlook run_outlook(const std::vector<double>& history, double tolerance, double seconds,
+                       double first_seconds, int done, double done_seconds, int total) {
     const ConvergenceOutlook o = convergence_outlook(history, tolerance);
     RunOutlook r;
     r.fraction = total > 0 ? (done + o.fraction) / total : 0.0;
-    const double per_iteration = history.empty() ? 0.0 : seconds / static_cast<double>(history.size());
-    const double this_left = o.remaining_iterations * per_iteration;  // NaN stays NaN
+    const size_t n = history.size();
+    const double per_iteration = n >= 2 ? (seconds - first_seconds) / static_cast<double>(n - 1)
+                                         : n == 1 ? seconds : 0.0;
+    double this_left = o.remaining_iterations * per_iteration;  // NaN stays NaN
+    if (std::isnan(this_left) && done > 0) this_left = std::max(0.0, done_seconds / done - seconds);
     const double per_solve = done > 0 ? done_seconds / done : seconds + this_left;
     r.seconds_left = this_left + std::max(0, total - done - 1) * per_solve;
     return r;

@@ -20,16 +20,19 @@ struct ConvergenceOutlook {
 ConvergenceOutlook convergence_outlook(const std::vector<double>& history, double tolerance);
 
 // Progress over `total` solves: `done` solves are complete and took `done_seconds`; the current
-// one has run `seconds` for history.size() iterations. fraction: (done + the current one's
-// outlook fraction) / total. seconds_left: the current solve's remaining iterations at its mean
-// iteration time, plus each later solve at the mean time of the completed ones (of the current
-// one's projected total when none is complete); NaN when the current solve's remaining
-// iterations are unknown.
+// one has run `seconds` for history.size() iterations, the first of which ended at
+// `first_seconds` (so its set-up, which the first iteration carries, is not taken for an
+// iteration's cost). fraction: (done + the current one's outlook fraction) / total.
+// seconds_left: the current solve's remaining iterations at the mean time of its iterations
+// after the first (of the first alone while there is one), plus each later solve at the mean
+// time of the completed ones (of the current one's projected total when none is complete).
+// Where the current solve's remaining iterations are unknown, it is taken to last as long as
+// the completed ones did on average; with none complete either, seconds_left is NaN.
 struct RunOutlook {
     double fraction = 0.0;
     double seconds_left = 0.0;
 };
-RunOutlook run_outlook(const std::vector<double>& history, double tolerance, double seconds, int done,
-                       double done_seconds, int total);
+RunOutlook run_outlook(const std::vector<double>& history, double tolerance, double seconds,
+                       double first_seconds, int done, double done_seconds, int total);
 
 }  // namespace nimbus

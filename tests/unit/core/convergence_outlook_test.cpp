@@ -40,13 +40,23 @@ TEST(ConvergenceOutlook, FromTheHistory) {
 
     // The run: 4 solves; the first took 10 s. The second has run 3 s for 3 iterations (1 s each)
     // with 2 left: 2 s, plus the last two solves at 10 s each.
-    RunOutlook r = run_outlook({1.0, 0.1, 1e-2}, 1e-4, 3.0, 1, 10.0, 4);
+    RunOutlook r = run_outlook({1.0, 0.1, 1e-2}, 1e-4, 3.0, 1.0, 1, 10.0, 4);
     EXPECT_NEAR(r.fraction, 1.5 / 4, 1e-12);
     EXPECT_NEAR(r.seconds_left, 2.0 + 2 * 10.0, 1e-12);
     // No solve complete yet: the later ones are taken to last as long as this one will (5 s).
-    r = run_outlook({1.0, 0.1, 1e-2}, 1e-4, 3.0, 0, 0.0, 2);
+    r = run_outlook({1.0, 0.1, 1e-2}, 1e-4, 3.0, 1.0, 0, 0.0, 2);
     EXPECT_NEAR(r.seconds_left, 2.0 + 5.0, 1e-12);
-    EXPECT_TRUE(std::isnan(run_outlook({1.0}, 1e-4, 1.0, 0, 0.0, 2).seconds_left));
+    // A first iteration that carried 4 s of set-up (ended at 5 s, then 1 s per iteration): the
+    // 2 iterations left take 2 s, not 2 x 7/3 s, and the next solve 7 + 2 s.
+    r = run_outlook({1.0, 0.1, 1e-2}, 1e-4, 7.0, 5.0, 0, 0.0, 2);
+    EXPECT_NEAR(r.seconds_left, 2.0 + 9.0, 1e-12);
+    // The current solve's rate is unknown: with no solve complete, so is the ETA; with two
+    // complete in 16 s, this one (at 3 s) takes the mean 8 s, 5 s more, and the last one 8 s.
+    EXPECT_TRUE(std::isnan(run_outlook({1.0}, 1e-4, 1.0, 1.0, 0, 0.0, 2).seconds_left));
+    r = run_outlook({1.0}, 1e-4, 3.0, 3.0, 2, 16.0, 4);
+    EXPECT_NEAR(r.seconds_left, 5.0 + 8.0, 1e-12);
+    // ... and never less than nothing when it has already run longer than the mean.
+    EXPECT_NEAR(run_outlook({1.0}, 1e-4, 10.0, 10.0, 2, 16.0, 3).seconds_left, 0.0, 1e-12);
 }
 
 }  // namespace
