@@ -325,13 +325,12 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
             sweeper.reset_periodic_planes();
             if (bc.sky) sweeper.set_sky_radiance(weight[sky_term]);
             dom::SweepOutput sw;
-            const double iteration_start = wall_time();
             const std::string what = fmt::format("solve {} of {} (bands {}; {})", solves_done + 1, nsolves,
                                                  fmt::join(band_names, ", "),
                                                  fmt::join(entry["terms"].get<std::vector<std::string>>(), ", "));
             double first_seconds = 0.0;  // when the first iteration (with DSA's set-up) ended
             const dom::IterationMonitor monitor = [&](const std::vector<double>& history) {
-                const double seconds = wall_time() - iteration_start;
+                const double seconds = wall_time() - solve_start;  // the clock of solves_seconds
                 if (history.size() == 1) first_seconds = seconds;
                 const RunOutlook o = run_outlook(history, opt_.tolerance, seconds, first_seconds, solves_done,
                                                  solves_seconds, nsolves);

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "src/core/error.h"
 #include "src/physics/lights.h"
@@ -171,12 +172,12 @@ ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, con
             }
         }
         for (int b = 0; b < nb; ++b) {
-            cell[1 + b] = static_cast<float>(J[static_cast<size_t>(b)]);
-            if (!std::isfinite(cell[1 + b]))
+            if (!(std::abs(J[static_cast<size_t>(b)]) <= std::numeric_limits<float>::max()))
                 throw Error(fmt::format("render: the view source J = {:.3g} W/(m³ sr) of band {} at cell ({}, {}, {}) "
                                         "is beyond float32 (3.4e38): lower render.emission_color, the lights or "
                                         "the sources' power (or the density)",
                                         J[static_cast<size_t>(b)], m.bands[static_cast<size_t>(b)].name, i, j, k));
+            cell[1 + b] = static_cast<float>(J[static_cast<size_t>(b)]);
             // |J| / max(kappa, 1/L) as the march will see it (the stored floats; march.h).
             const double Jf = cell[1 + b];
             const double kappa = static_cast<double>(cell[0]) * v.sigma_t[static_cast<size_t>(b)];
