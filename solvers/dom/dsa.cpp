@@ -34,7 +34,7 @@ std::unique_ptr<diffusion::hypre::Matrix> assemble_matrix(MPI_Comm comm, const d
 
 }  // namespace
 
-DiffusionSynthetic::DiffusionSynthetic(const Decomposition& d, const BandProblem& p, LinearSolve solve,
+DiffusionSynthetic::DiffusionSynthetic(const Decomposition& d, const BandProblem& p,
                                        const std::array<bool, 6>& reflective, bool lagged_sources)
     : d_(d), p_(p) {
     const Box& own = d.local();
@@ -56,17 +56,13 @@ DiffusionSynthetic::DiffusionSynthetic(const Decomposition& d, const BandProblem
     dp_.Q0.emplace_back(own, 0, 1, 0.0);
     dp_.G.emplace_back(own, 1, 3, 0.0);
     chi1_ = p.phase.chi.size() > 1 ? p.phase.chi[1] : 0.0;
-    v_cycles_ = solve.v_cycles;
-    opt_.solver = v_cycles_ > 0 ? "pfmg-cycle" : "pfmg-pcg";
-    opt_.tolerance = solve.tolerance;
-    opt_.max_iterations = 200;
-    region_ = diffusion::find_solve_region(d, dp_, opt_.margin);
+    region_ = diffusion::find_solve_region(d, dp_, DiffusionOptions{}.margin);
     delta_ = Field<double>(own, 0, 1, 0.0);
     current_ = Field<double>(own, 0, 3, 0.0);
     if (region_.box.empty()) return;  // same answer on every rank: nothing is set up anywhere
     kappa_floor_ = 1.0 / diffusion::default_transport_length(region_, dp_);
 
-    // Assemble the matrix and set up PFMG-PCG once (collective; see linear_solve.h).
+    // Assemble the matrix and set up PFMG once (collective).
     namespace hy = diffusion::hypre;
     assembler_ = std::make_unique<diffusion::Assembler>(dp_, kappa_floor_);
     const diffusion::Assembler& assembler = *assembler_;
@@ -82,16 +78,10 @@ DiffusionSynthetic::DiffusionSynthetic(const Decomposition& d, const BandProblem
     for_each_cell(box_, [&](int i, int j, int k) { full_[n++] = assembler.full(i, j, k) ? 1 : 0; });
     b_ = std::make_unique<hy::Vector>(d.comm(), *grid_);
     x_ = std::make_unique<hy::Vector>(d.comm(), *grid_);
-    r_ = std::make_unique<hy::Vector>(d.comm(), *grid_);
     b_->assemble();
     x_->assemble();
-    solver_ = std::make_unique<hy::Solver>(d.comm(), opt_.solver, period[0] + period[1] + period[2] > 0);
-    if (v_cycles_ > 0) {
-        solver_->set_max_iterations(v_cycles_);  // "pfmg-cycle": tolerance 0, zero initial guess
-    } else {
-        solver_->set_max_iterations(opt_.max_iterations);  // the largest limit, before setup
-        solver_->set_tolerance(opt_.tolerance);
-    }
+    solver_ = std::make_unique<hy::Solver>(d.comm(), "pfmg-cycle", period[0] + period[1] + period[2] > 0);
+    solver_->set_max_iterations(kVCycles);  // "pfmg-cycle": tolerance 0, zero initial guess
     solver_->setup(*A_, *b_, *x_);
     period_ = period;  // the current's filter is set up at its first use (set_up_current_filter)
 }
@@ -169,26 +159,15 @@ int DiffusionSynthetic::correct(const Field<double>& fluence_old, const Field<do
     return iterations;
 }
 
-// x = A^{-1} b on box_ (b_norm = ||b||, global): PFMG-PCG from zero to the TRUE relative
-// residual (hypre::solve_to_true_residual, as the diffusion model), or v_cycles_ V-cycles from zero.
-int DiffusionSynthetic::solve_system(std::vector<double>& b, double b_norm, std::vector<double>& x) {
+// x ≈ A^{-1} b on box_: kVCycles PFMG V-cycles from zero.
+void DiffusionSynthetic::solve_system(std::vector<double>& b, std::vector<double>& x) {
     x.assign(b.size(), 0.0);
     b_->set_box_values(box_, b);
     b_->assemble();
     x_->set_box_values(box_, x);
     x_->assemble();
-    if (v_cycles_ > 0) {
-        solver_->solve(*A_, *b_, *x_);
-        x_->get_box_values(box_, x);
-        return v_cycles_;
-    }
-    const diffusion::hypre::TrueResidualSolve sol = diffusion::hypre::solve_to_true_residual(
-        d_.comm(), *solver_, *A_, *b_, *x_, b, b_norm, box_, *r_, opt_.tolerance, opt_.max_iterations);
-    if (!sol.converged)  // the true residual is global: every rank throws together
-        throw Error(fmt::format("dom: DSA diffusion solve did not reach {:.1e} in {} iterations (true residual {:.3e})",
-                                opt_.tolerance, sol.iterations, sol.true_residual));
+    solver_->solve(*A_, *b_, *x_);
     x_->get_box_values(box_, x);
-    return sol.iterations;
 }
 
 int DiffusionSynthetic::solve(const Field<double>& r0, const Field<double>* r1, const Field<double>* mirror_source) {
@@ -239,7 +218,7 @@ int DiffusionSynthetic::solve(const Field<double>& r0, const Field<double>* r1, 
         return 0;
     }
     std::vector<double> x;
-    const int iterations = solve_system(b, b_norm, x);
+    solve_system(b, x);
     n = 0;
     for_each_cell(box_, [&](int i, int j, int k) {
         delta_(i, j, k) = full_[n] ? x[n] : 0.0;
@@ -256,7 +235,7 @@ int DiffusionSynthetic::solve(const Field<double>& r0, const Field<double>* r1, 
     } else {
         zero_box(current_);
     }
-    return iterations;
+    return kVCycles;
 }
 
 }  // namespace nimbus::dom

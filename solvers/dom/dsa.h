@@ -43,8 +43,16 @@
 // The same solve is the preconditioner of GMRES (gmres.h): solve() takes any fluence and flux
 // change (R0, R1) and returns δ and δF, the corrections of the last call.
 //
+// Each correction's diffusion system is solved by kVCycles PFMG V-cycles from zero: a fixed
+// linear map, as GMRES's preconditioner needs and source iteration does not mind (a correction
+// only has to catch the sweep's slow error modes; its own error is swept and corrected again in
+// the next iteration). Against PFMG-PCG to a relative residual of 0.1 (source iteration's until
+// the thirty-second session), two cycles took the same outer iterations on every scene and hard
+// case measured (solvers/dom/README.md, "DSA's linear solve") for 0.78x the DSA time: no
+// preconditioned-residual bookkeeping and no true-residual product per correction.
+//
 // Collective over d.comm(). The operator does not change between iterations (only the
-// right-hand side does): the hypre grid, matrix and PFMG-PCG setup are built ONCE in the
+// right-hand side does): the hypre grid, matrix and PFMG setup are built ONCE in the
 // constructor and every correct() is one solve (about half of the wall time went into the
 // per-iteration re-assembly and setup before).
 #pragma once
@@ -65,32 +73,30 @@ namespace nimbus::dom {
 
 class DiffusionSynthetic {
 public:
-    // How each correction's diffusion system is solved.
-    struct LinearSolve {
-        double tolerance = 0.1;  // PFMG-PCG to this relative residual (checked on the true residual)
-        int v_cycles = 0;        // > 0: instead, this many PFMG V-cycles from zero, a fixed linear map
-    };
+    // PFMG V-cycles from zero per correction (above). One cycle took one more outer iteration
+    // on 4 of the 10 cases and moved the answers up to 3e-5 (rel L2; two cycles: 4e-6).
+    static constexpr int kVCycles = 2;
     // Collective. p must outlive this object. reflective: the sweep's mirror faces
     // (SweepBoundary::reflective, x-, x+, y-, y+, z-, z+); lagged_sources: correct() will get the
     // high mirror faces' current changes (else those faces keep Marshak).
-    DiffusionSynthetic(const Decomposition& d, const BandProblem& p, LinearSolve solve,
-                       const std::array<bool, 6>& reflective = {}, bool lagged_sources = false);
+    DiffusionSynthetic(const Decomposition& d, const BandProblem& p, const std::array<bool, 6>& reflective = {},
+                       bool lagged_sources = false);
     ~DiffusionSynthetic();
     DiffusionSynthetic(const DiffusionSynthetic&) = delete;
     DiffusionSynthetic& operator=(const DiffusionSynthetic&) = delete;
     // Collective. Adds δ to fluence and δF to flux (owned cells) for the sweep's changes
     // R0 = fluence - fluence_old, R1 = flux - flux_old; with_current false: the isotropic
-    // correction alone (δF = 0, the cost of plain DSA). Returns the linear solver's iterations (0
-    // when the right-hand side vanishes everywhere; the V-cycles with LinearSolve::v_cycles). Throws
-    // Error (on every rank) when the true relative residual stays above the tolerance.
+    // correction alone (δF = 0, the cost of plain DSA). Returns the V-cycles run (kVCycles, or 0
+    // when the right-hand side vanishes everywhere). Throws Error (on every rank) when the
+    // right-hand side is not finite.
     // mirror_source: dJ / h per boundary cell of the high mirror faces (TransportSweeper::
     // for_each_lagged_mirror_change), owned cells, or null.
     int correct(const Field<double>& fluence_old, const Field<double>& flux_old, Field<double>& fluence,
                 Field<double>& flux, bool with_current, const Field<double>* mirror_source = nullptr);
     // Collective. δ and δF for a fluence change r0 (W/m², owned cells, 1 component) and a flux
     // change r1 (3 components, or null: the isotropic correction alone, δF = 0), into last_correction() and
-    // last_current_correction(). Same return value and errors as correct(). A linear map of
-    // (r0, r1) up to the solver tolerance (PCG from a zero initial guess), exactly with V-cycles.
+    // last_current_correction(). Same return value and errors as correct(). Exactly a linear map
+    // of (r0, r1): fixed V-cycles from a zero initial guess.
     int solve(const Field<double>& r0, const Field<double>* r1, const Field<double>* mirror_source = nullptr);
     // The corrections of the last call (owned cells, W/m²): δ, and δF (3 components; zero without
     // r1 or when the phase function has no first moment, chi_1 = 0, which the sweep would not read).
@@ -101,7 +107,7 @@ public:
     const Box& box() const { return box_; }
 
 private:
-    int solve_system(std::vector<double>& b, double b_norm, std::vector<double>& x);  // collective (b: hypre takes it non-const)
+    void solve_system(std::vector<double>& b, std::vector<double>& x);  // collective (b: hypre takes it non-const)
     void set_up_current_filter();                    // collective
     void filter_current_source(Field<double>& G);     // collective
     // The current's source is filtered (above) with width nu = kCurrentFilterWidth / kappa*.
@@ -110,8 +116,6 @@ private:
     const BandProblem& p_;
     diffusion::DiffusionProblem dp_;
     diffusion::SolveRegion region_;
-    DiffusionOptions opt_;
-    int v_cycles_ = 0;  // LinearSolve::v_cycles
     double kappa_floor_ = 0.0;
     double chi1_ = 0.0;      // the first Legendre moment of the (scaled) phase function
     Field<double> delta_;
@@ -125,7 +129,7 @@ private:
     std::unique_ptr<diffusion::hypre::Grid> grid_;
     std::unique_ptr<diffusion::hypre::SymmetricStencil7> stencil_;
     std::unique_ptr<diffusion::hypre::Matrix> A_;
-    std::unique_ptr<diffusion::hypre::Vector> b_, x_, r_;
+    std::unique_ptr<diffusion::hypre::Vector> b_, x_;
     std::unique_ptr<diffusion::hypre::Solver> solver_;
     Int3 period_{0, 0, 0};            // the hypre grid's periods
     diffusion::DiffusionProblem fp_;  // the current filter's problem (set up at its first use)

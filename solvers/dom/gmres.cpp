@@ -18,12 +18,6 @@
 namespace nimbus::dom {
 namespace {
 
-// PFMG V-cycles of the DSA solve inside the preconditioner (gmres.h). One cycle took one more
-// GMRES iteration on the default cloud (7 + 6 instead of 6 + 6) and on the g = -0.5 cube (8
-// instead of 7); two took the same iterations as PFMG-PCG to 1e-6 on every test and on the
-// default cloud, whose answer moved 4e-6 (rel L2; one cycle: 4e-5).
-constexpr int kPreconditionerVCycles = 2;
-
 void check(PetscErrorCode ierr, const char* what) { petsc::check(ierr, "dom (gmres)", what); }
 
 void ensure_petsc(MPI_Comm comm) { petsc::ensure_initialized(comm); }
@@ -230,9 +224,8 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     std::unique_ptr<DiffusionSynthetic> dsa;
     if (preconditioner == GmresPreconditioner::dsa) {
         ScopedTimer t(report, "dsa_setup");
-        // Two PFMG V-cycles per application (gmres.h): a fixed linear map, unlike PCG to a tolerance.
-        dsa = std::make_unique<DiffusionSynthetic>(d, p, DiffusionSynthetic::LinearSolve{0.0, kPreconditionerVCycles},
-                                                   sweeper.boundary().reflective);
+        // DiffusionSynthetic::kVCycles PFMG V-cycles per application (gmres.h): a fixed linear map.
+        dsa = std::make_unique<DiffusionSynthetic>(d, p, sweeper.boundary().reflective);
         kc.dsa = dsa.get();
         kc.r0 = Field<double>(own, 0, 1, 0.0);
         kc.r1 = Field<double>(own, 0, 3, 0.0);

@@ -19,16 +19,6 @@ namespace {
 // correction removes. Thin media converge faster (the smoke: 0.025, 0.016) and never pay for it.
 constexpr double kCurrentFromRatio = 0.2;
 
-// DSA's linear solves stop at this relative residual. A correction only has to catch the slow
-// error modes of the sweep: its own error is 0.1 of the change it corrects and is swept and
-// corrected again in the next iteration. Against 1e-4 (used until the twenty-eighth session),
-// every DOM test and every scene of the study (2 ranks, step, exact light pass) took the same
-// outer iterations (the tau-75 cube one fewer), with 2-3.5x fewer PFMG-PCG iterations (default
-// cloud 43 + 45 -> 20 + 20, duct 42 -> 12, smoke 18 -> 8 per band) and fluence_diffuse within
-// 6e-7 (rel L2) of the 1e-4 answer. GMRES's preconditioner is instead a fixed number of
-// V-cycles (gmres.cpp): it must be the same linear map at every Krylov step.
-constexpr double kDsaTolerance = 0.1;
-
 }  // namespace
 
 std::string format_history(const std::vector<double>& h) {
@@ -85,8 +75,7 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
     std::unique_ptr<DiffusionSynthetic> dsa;
     if (method == "dsa") {
         ScopedTimer t(report, "dsa_setup");
-        dsa = std::make_unique<DiffusionSynthetic>(d, p, DiffusionSynthetic::LinearSolve{kDsaTolerance, 0},
-                                                   sweeper.boundary().reflective, true);
+        dsa = std::make_unique<DiffusionSynthetic>(d, p, sweeper.boundary().reflective, true);
     }
     const double y00 = 1.0 / std::sqrt(4.0 * std::acos(-1.0));
     const double y1 = first_moment_scale();
@@ -168,7 +157,7 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
             break;
         }
         log::debug("dom: {} iteration {}: relative change {:.3e}{}", method, it, change,
-                   dsa ? fmt::format(" (DSA: {} PFMG-PCG iterations so far)", res.dsa_linear_iterations) : "");
+                   dsa ? fmt::format(" (DSA: {} PFMG V-cycles so far)", res.dsa_linear_iterations) : "");
         std::swap(phi, out.phi);  // phi: the current iterate, feeds the next source
         fluence_old = out.fluence;
         flux_old = out.flux;

@@ -29,7 +29,7 @@ struct IterationResult {
     std::string divergence;          // why, when stalled
     int iterations = 0;
     std::vector<double> history;     // relative change after each iteration
-    int dsa_linear_iterations = 0;   // summed over the DSA solves
+    int dsa_linear_iterations = 0;   // PFMG V-cycles, summed over the DSA solves
     double seconds = 0;              // total iteration time (sweeps, moments, DSA)
 };
 
