@@ -8,17 +8,9 @@
 #include "solvers/diffusion/linear_solve.h"
 #include "src/core/log.h"
 #include "src/core/error.h"
+#include "src/core/residual_history.h"
 
 namespace nimbus::diffusion {
-namespace {
-
-}  // namespace
-
-std::string format_history(const std::vector<std::pair<int, double>>& history) {
-    std::string s;
-    for (auto& [it, res] : history) s += fmt::format("{}{}: {:.3e}", s.empty() ? "" : ", ", it, res);
-    return s;
-}
 
 LinearSolveOutput solve_with_hypre(const Decomposition& d, const Assembler& assembler,
                                    const DiffusionProblem& p, const SolveRegion& region,

@@ -2,6 +2,8 @@
 
 #include <HYPRE_utilities.h>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <fmt/format.h>
 
 #include "src/core/error.h"
@@ -115,6 +117,14 @@ void ensure_initialized() {
 }
 
 Grid::Grid(MPI_Comm comm, const Box& box, const Int3& period) {
+    // hypre counts the grid's cells in HYPRE_BigInt, 32 bits unless hypre was configured with
+    // --enable-bigint (Debian's is not): refuse what would wrap, before hypre sees it.
+    std::int64_t cells = box.cells();
+    MPI_Allreduce(MPI_IN_PLACE, &cells, 1, MPI_INT64_T, MPI_SUM, comm);
+    check_collective(comm, cells <= std::numeric_limits<HYPRE_BigInt>::max(),
+                     fmt::format("hypre: the structured system has {} cells, more than this hypre build's integers "
+                                 "hold ({}): use a coarser grid, or a hypre configured with --enable-bigint",
+                                 cells, std::numeric_limits<HYPRE_BigInt>::max()));
     ensure_initialized();
     HYPRE_StructGridCreate(comm, 3, &g_);
     if (!box.empty()) {

@@ -48,7 +48,4 @@ void check_petsc(const Decomposition& d, const DiffusionOptions& opt);
 // The decomposition part of check_petsc (slabs along z), without communication.
 void check_petsc_layout(const Decomposition& d);
 
-// "iteration: residual" pairs as one line, for error messages.
-std::string format_history(const std::vector<std::pair<int, double>>& history);
-
 }  // namespace nimbus::diffusion

@@ -17,6 +17,7 @@
 
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -26,6 +27,7 @@
 #include "solvers/diffusion/linear_solve.h"
 #include "solvers/diffusion/petsc_support.h"
 #include "src/core/error.h"
+#include "src/core/residual_history.h"
 
 namespace nimbus::diffusion {
 namespace {
@@ -65,6 +67,12 @@ void create_options(const DiffusionOptions& opt, OptionsHandle& options) {
 // `options` (null: the global database) under the prefix "diffusion_". Collective.
 void create_dmda(const Decomposition& d, const Int3& n, const std::array<bool, 3>& periodic, PetscOptions options,
                  const DiffusionOptions& opt, DMHandle& da) {
+    const std::int64_t cells = static_cast<std::int64_t>(n[0]) * n[1] * n[2];  // the same on every rank
+    check_collective(d.comm(), cells <= PETSC_MAX_INT,
+                     fmt::format("diffusion: petsc: the grid has {} cells, more than this PETSc build's integers hold "
+                                 "({}): use solver = \"pfmg-pcg\" (the solve region only), a coarser grid, or a PETSc "
+                                 "configured with --with-64-bit-indices",
+                                 cells, static_cast<std::int64_t>(PETSC_MAX_INT)));
     std::vector<PetscInt> lz(static_cast<size_t>(d.size()));
     for (int r = 0; r < d.size(); ++r) lz[static_cast<size_t>(r)] = d.box_of(r).size(2);
     DMBoundaryType bt[3];

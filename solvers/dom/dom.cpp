@@ -16,6 +16,7 @@
 #include "src/core/log.h"
 #include "src/core/progress.h"
 #include "src/core/report.h"
+#include "src/core/residual_history.h"
 #include "src/physics/angular_moments.h"
 #include "src/physics/band_groups.h"
 #include "src/scene/emission.h"
@@ -149,14 +150,14 @@ bool beyond_quadrature(const DomOptions& opt) {
     if (res.stalled)
         throw Error(fmt::format("dom: the solve of {} diverges with iteration = \"{}\": {} (relative change {}); "
                                 "use model.dom.iteration = \"gmres\" (DSA-preconditioned GMRES){}",
-                                for_bands, opt.iteration, res.divergence, dom::format_history(res.history),
+                                for_bands, opt.iteration, res.divergence, format_history(res.history),
                                 beyond_quadrature(opt) ? fmt::format(", or model.dom.legendre_order <= {} (what S{} integrates)",
                                                                      opt.order - 1, opt.order)
                                                        : std::string()));
     throw Error(fmt::format("dom: the solve of {} did not converge in {} {} iterations (tolerance {:.1e}); "
                             "relative change: {}; raise model.dom.max_iterations or use "
                             "model.dom.iteration = \"gmres\"", for_bands, res.iterations, opt.iteration,
-                            opt.tolerance, dom::format_history(res.history)));
+                            opt.tolerance, format_history(res.history)));
 }
 
 // Energy balance of the scaled problem into the solve's report entry: emitted + first-collision

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <memory>
 #include <string>
@@ -173,7 +174,15 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     // The Krylov vectors hold the moments of the source rows' cells only, packed (transport_sweep.h):
     // elsewhere sigma_s is 0, so moments there would feed no source, and the sweep stores none.
     const SourceRows rows = source_rows(p);
-    const PetscInt nloc = static_cast<PetscInt>(rows.cells() * nm);
+    std::int64_t unknowns[2] = {static_cast<std::int64_t>(rows.cells() * nm), 0};  // this rank's, all ranks'
+    MPI_Allreduce(&unknowns[0], &unknowns[1], 1, MPI_INT64_T, MPI_SUM, comm);
+    check_collective(comm, unknowns[1] <= PETSC_MAX_INT,
+                     fmt::format("dom: gmres: the Krylov vectors would hold {} moments (cells that scatter x {} "
+                                 "moments), more than this PETSc build's integers hold ({}): use iteration = "
+                                 "\"dsa\", a lower legendre_order or a coarser grid, or a PETSc configured with "
+                                 "--with-64-bit-indices",
+                                 unknowns[1], nmom, static_cast<std::int64_t>(PETSC_MAX_INT)));
+    const PetscInt nloc = static_cast<PetscInt>(unknowns[0]);
     ShellContext c{&sweeper, &p, moment_chi(p, ang), std::vector<double>(rows.cells() * nm, 0.0), {}, {}, 0, {}};
     c.scatter_only.kappa = &p.kappa;
     c.scatter_only.moments = c.s;

@@ -21,19 +21,6 @@ constexpr double kCurrentFromRatio = 0.2;
 
 }  // namespace
 
-std::string format_history(const std::vector<double>& h) {
-    std::string s;
-    const size_t n = h.size();
-    for (size_t i = 0; i < n; ++i) {
-        if (n > 12 && i == 6) {
-            s += "..., ";
-            i = n - 6;
-        }
-        s += fmt::format("{}: {:.3e}{}", i + 1, h[i], i + 1 < n ? ", " : "");
-    }
-    return s;
-}
-
 bool stalled(const std::vector<double>& history) {
     const size_t n = history.size(), w = static_cast<size_t>(kStallWindow);
     if (n < 2 * w) return false;

@@ -77,7 +77,4 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
                              int max_iterations, SweepOutput& out, Report& report,
                              const IterationMonitor& monitor = {});
 
-// "1: 3.2e-01, 2: 1.1e-01, ..." (at most the first and last few entries).
-std::string format_history(const std::vector<double>& history);
-
 }  // namespace nimbus::dom

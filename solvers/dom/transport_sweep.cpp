@@ -531,7 +531,6 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
             });
             if (done) return;
             ++timing_.periodic_passes;
-            timing_.cell_directions += static_cast<std::int64_t>(own.size(0)) * own.size(1) * nd;
             for (int j = sl.ry.first; j != sl.ry.end; j += sl.ry.step)
                 for (int i = sl.rx.first; i != sl.rx.end; i += sl.rx.step) cell_kernel(sl, i, j, k);
         }
@@ -610,7 +609,6 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
         timing_.sweep_seconds += MPI_Wtime() - t0;
         timing_.wait_seconds += stats.wait_seconds;
         for (OctantSlot& sl : slots) {
-            timing_.cell_directions += own.cells() * sl.nd;
             timing_.fixups += sl.fixups;
             store_reflected(*sl.psi, sl.o);
             if (periodic && external) store_periodic_planes(*sl.psi, sl.o);

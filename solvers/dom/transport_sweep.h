@@ -165,7 +165,6 @@ struct SweepTiming {
     double sweep_seconds = 0;     // engine time (kernel + pipeline), this rank
     double wait_seconds = 0;      // of which blocked on upstream planes
     double moment_seconds = 0;    // moments to directions (source) and back (reduction)
-    std::int64_t cell_directions = 0;  // cells x directions computed by this rank (incl. periodic passes)
     int periodic_passes = 0;      // extra layer passes of the periodic iteration
     std::int64_t fixups = 0;      // diamond: cell-directions that needed the negative-flux fix-up
 };

@@ -13,6 +13,9 @@
 //                       (3g/4π) F·ω term)
 //   iterations     3    rounds of six map sweeps at most
 //   epsilon     1e-3    stop when max U < epsilon x max first-scatter source
+//   tail   diffusion    the light still in U at the stop: none (dropped) | geometric (the series'
+//                       remainder, extrapolated) | diffusion (one P1 solve with U as its source)
+//                       (tail.h)
 // Output per band: fluence_diffuse = ∫ I_d dω (W/m²), flux_diffuse F with solution_bins = 4.
 // Report: ctx.report.values()["lpm"]: iterations, max U per iteration, seconds per map sweep,
 // energy balance (source = escaped + absorbed + remaining, W). Needs slabs along z.

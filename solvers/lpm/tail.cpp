@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <numbers>
 
-#include "src/core/error.h"
 #include "src/core/halo.h"
 
 #include "solvers/diffusion/solve_diffusion.h"

@@ -13,7 +13,6 @@
 #include "solvers/montecarlo/replicated_problem.h"
 #include "solvers/montecarlo/trace_lanes.h"
 #include "src/core/error.h"
-#include "src/core/gather.h"
 #include "src/core/halo.h"
 #include "src/core/log.h"
 #include "src/core/mpi_counts.h"

@@ -15,7 +15,7 @@
 // Distribution (slabs along z): a level stays distributed while every rank's slab of it is at
 // least (ghost + 1) layers thick, with ghost = max(kernel radius, 3) layers filled by the halo
 // exchange (src/core/halo.h); coarser levels are replicated on every rank (gathered once).
-// Other process grids replicate every level above 0.
+// Other process grids are refused (the LightPyramid constructor: slabs along z only).
 #pragma once
 
 #include <array>

@@ -22,8 +22,9 @@ Int3 Decomposition::choose_dims(const Int3& n, int nranks, Int3 proc_dims, bool 
     }
     if (free_axes > 0) {
         if (nranks % fixed != 0)
-            throw Error(fmt::format("process grid {}x{}x{} does not divide {} ranks",
-                                    proc_dims[0], proc_dims[1], proc_dims[2], nranks));
+            throw Error(fmt::format("process grid [{}, {}, {}]: the fixed entries (product {}) do not divide the {} "
+                                    "ranks (0 = chosen to fit)",
+                                    proc_dims[0], proc_dims[1], proc_dims[2], fixed, nranks));
         MPI_Dims_create(nranks, 3, proc_dims.data());  // local: no communication
     }
     const int needed = proc_dims[0] * proc_dims[1] * proc_dims[2];

@@ -30,8 +30,9 @@ void for_each_row(const Box& part, Fn&& fn) {
 
 std::vector<double> move_cells(const Decomposition& from, std::span<const double> values, const Decomposition& to) {
     const Box& mine = from.local();
-    if (static_cast<std::int64_t>(values.size()) != mine.cells())
-        throw Error("move_cells: the values do not cover this rank's box");
+    // This rank's answer, reduced: every rank throws or none goes on to the collectives below.
+    check_collective(from.comm(), static_cast<std::int64_t>(values.size()) == mine.cells(),
+                     "move_cells: the values do not cover this rank's box");
     // (The same answer on every rank, so all throw or none.)
     if (!(from.global() == to.global()) || from.size() != to.size())
         throw Error("move_cells: the two decompositions do not split the same grid over the same ranks");

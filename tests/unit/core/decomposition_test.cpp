@@ -1,5 +1,8 @@
 // Decomposition: boxes partition the grid, slabs along z by default, clear refusals.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
+
+#include <string>
 
 #include "src/core/decomposition.h"
 #include "src/core/error.h"
@@ -88,6 +91,17 @@ TEST(Decomposition, RefusesZeroSizeGridAndBadProcessGrid) {
     EXPECT_THROW(Decomposition(MPI_COMM_WORLD, {0, 4, 4}), Error);
     // A process grid whose product is not the rank count.
     EXPECT_THROW(Decomposition(MPI_COMM_WORLD, {4, 4, 4}, {test::world_size() + 1, 1, 1}), Error);
+    // Fixed entries that do not divide the rank count: the message says which, not "2x0x0".
+    const int fixed = test::world_size() + 1;
+    try {
+        Decomposition(MPI_COMM_WORLD, {8, 8, 8}, {fixed, 0, 0});
+        ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+        EXPECT_EQ(std::string(e.what()),
+                  fmt::format("process grid [{}, 0, 0]: the fixed entries (product {}) do not divide the {} ranks "
+                              "(0 = chosen to fit)",
+                              fixed, fixed, test::world_size()));
+    }
 }
 
 TEST(Decomposition, ProcessGridAlongXIsAllowed) {

@@ -1,10 +1,12 @@
 // move_cells: a distributed array moved between two splits of the same grid keeps every
-// cell's value, and moving back restores it.
+// cell's value, and moving back restores it; values that do not fit one rank's box are an
+// Error on every rank.
 #include <gtest/gtest.h>
 
 #include "src/core/error.h"
 #include "src/core/field.h"
 #include "src/core/relayout.h"
+#include "tests/support/expect_collective_error.h"
 #include "tests/support/mpi_test.h"
 
 namespace nimbus {
@@ -31,6 +33,11 @@ TEST(Relayout, MovesCellsBetweenSlabSplitsAndBack) {
     EXPECT_EQ(moved, values_on(top_thin.local()));
     EXPECT_EQ(move_cells(top_thin, moved, even), values_on(even.local()));
     EXPECT_THROW(move_cells(even, std::vector<double>(3), top_thin), Error);
+    // Short values on the last rank only: one Error on every rank, not a hang in the exchange.
+    std::vector<double> short_on_last = values_on(even.local());
+    if (test::world_rank() == P - 1) short_on_last.pop_back();
+    test::expect_collective_error([&] { move_cells(even, short_on_last, top_thin); },
+                                  "move_cells: the values do not cover this rank's box");
 }
 
 TEST(Relayout, MovesCellsBetweenProcessGrids) {

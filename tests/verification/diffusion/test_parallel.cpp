@@ -249,6 +249,19 @@ TEST(DiffusionParallel, HypreFailureOnOneRankIsOneCollectiveError) {
     EXPECT_GT(test::global_max(*std::max_element(local.begin(), local.end()), MPI_COMM_WORLD), 0.0);
 }
 
+// A system with more cells than hypre's 32-bit integers count (a 1300³ solve region, here split
+// over the ranks) is one Error on every rank before hypre is called, not a wrapped size.
+TEST(DiffusionParallel, HypreRefusesASystemBeyondItsIntegers) {
+    const int rank = test::world_rank(), size = test::world_size();
+    const int n = 1300, lo = n * rank / size, hi = n * (rank + 1) / size;
+    test::expect_collective_error(
+        [&] { diffusion::hypre::Grid grid(MPI_COMM_WORLD, Box{{0, 0, lo}, {n, n, hi}}, {0, 0, 0}); },
+        "hypre: the structured system has 2197000000 cells, more than this hypre build's integers hold");
+    // Just below the limit the check passes (hypre only records the extents here).
+    const int m = 1290;  // 2 146 689 000 cells < 2^31 - 1
+    diffusion::hypre::Grid ok(MPI_COMM_WORLD, Box{{0, 0, m * rank / size}, {m, m, m * (rank + 1) / size}}, {0, 0, 0});
+}
+
 // Too few iterations: an Error on every rank whose message gives the residual history.
 TEST(DiffusionParallel, NonConvergenceIsAnErrorWithTheResidualHistory) {
     for (const std::string solver : {"pfmg-pcg", "smg", "petsc"}) {
