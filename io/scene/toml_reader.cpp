@@ -162,21 +162,25 @@ double TableReader::number(const toml::value& v, const std::string& key,
 std::int64_t TableReader::integer(const std::string& key, std::int64_t lo, std::int64_t hi) const {
     const toml::value& v = at(key);
     std::int64_t x = 0;
-    if (v.is_integer()) {
-        x = v.as_integer();
-    } else if (v.is_floating() && std::isfinite(v.as_floating()) &&
-               v.as_floating() == std::floor(v.as_floating()) && std::abs(v.as_floating()) < 9e18) {
-        x = static_cast<std::int64_t>(v.as_floating());  // e.g. photons = 1e6
-    } else {
-        fail(key, fmt::format("must be an integer {}", found(v)));
-    }
     // toml11 reads a literal beyond the 64-bit range as the nearest limit, silently: the limits
     // themselves are therefore refused as "out of range" (a seed of 2^64 ran as 2^63 - 1).
     constexpr std::int64_t kMax = std::numeric_limits<std::int64_t>::max(), kMin = std::numeric_limits<std::int64_t>::min();
     hi = std::min(hi, kMax - 1);
     lo = std::max(lo, kMin + 1);
-    if (x == kMax || x == kMin)
-        fail(key, fmt::format("is beyond the 64-bit integer range: must be an integer in [{}, {}]", lo, hi));
+    if (v.is_integer()) {
+        x = v.as_integer();
+    } else if (v.is_floating() && std::isfinite(v.as_floating()) && v.as_floating() == std::floor(v.as_floating())) {
+        const double f = v.as_floating();  // e.g. photons = 1e6
+        if (std::abs(f) >= 9e18)
+            fail(key, f > 0 ? fmt::format("= {:g} is too large (at most {})", f, hi)
+                            : fmt::format("= {:g} is too small (at least {})", f, lo));
+        x = static_cast<std::int64_t>(f);
+    } else {
+        fail(key, fmt::format("must be an integer {}", found(v)));
+    }
+    if (x == kMax || x == kMin)  // the caller's bound, not the type's far one
+        fail(key, x == kMax ? fmt::format("is beyond the 64-bit integer range (at most {})", hi)
+                            : fmt::format("is beyond the 64-bit integer range (at least {})", lo));
     // One bound in the message: the other is the type's far limit, which would only confuse.
     if (x > hi) fail(key, fmt::format("= {} is too large (at most {})", x, hi));
     if (x < lo) fail(key, fmt::format("= {} is too small (at least {})", x, lo));

@@ -155,9 +155,9 @@ bool beyond_quadrature(const DomOptions& opt) {
                                                                      opt.order - 1, opt.order)
                                                        : std::string()));
     throw Error(fmt::format("dom: the solve of {} did not converge in {} {} iterations (tolerance {:.1e}); "
-                            "relative change: {}; raise model.dom.max_iterations or use "
-                            "model.dom.iteration = \"gmres\"", for_bands, res.iterations, opt.iteration,
-                            opt.tolerance, format_history(res.history)));
+                            "relative change: {}; raise model.dom.max_iterations{}",
+                            for_bands, res.iterations, opt.iteration, opt.tolerance, format_history(res.history),
+                            opt.iteration == "gmres" ? "" : " or use model.dom.iteration = \"gmres\""));
 }
 
 // Energy balance of the scaled problem into the solve's report entry: emitted + first-collision

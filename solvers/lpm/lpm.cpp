@@ -118,9 +118,13 @@ public:
 
 private:
     static void check_decomposition(const Decomposition& d) {
-        if (!(d.is_slab_z() && !d.periodic(2)))
-            throw Error(fmt::format("model lpm needs slabs along z (grid.process_grid = [1, 1, P]) and z not "
-                                    "periodic; got {}", d.describe()));
+        if (!d.is_slab_z())
+            throw Error(fmt::format("model lpm needs slabs along z (grid.process_grid = [1, 1, P]): its z maps are "
+                                    "pipelined down the slab chain; got {}",
+                                    d.describe()));
+        if (d.periodic(2))
+            throw Error("model lpm: grid.periodic z is not supported (its z maps run down the slab chain); use "
+                        "periodic x/y only");
     }
 
     LpmOptions opt_;

@@ -360,7 +360,9 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
                 const double v = power_of[static_cast<size_t>(b)];
                 s1 += v, s2 += v * v;
                 const int K = done + b + 1;
-                if (K >= std::min(kMinBatchesForTarget, layout) && K < layout &&
+                // s1 > 0: batches that tallied no diffuse power at all estimate no error (the
+                // function's 0 would meet any target after a few empty batches).
+                if (K >= std::min(kMinBatchesForTarget, layout) && K < layout && s1 > 0 &&
                     relative_standard_error(s1, s2, K) < opt.target_rel_error)
                     target_kept = b + 1;
             }
@@ -381,7 +383,8 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
         }
         done += kept;
         log::debug("montecarlo: round done: {} of {} batches kept ({} complete this round)", done, layout, kept);
-        res.rel_error = relative_standard_error(diffuse_s1, diffuse_s2, done);
+        res.rel_error = diffuse_s1 > 0 ? relative_standard_error(diffuse_s1, diffuse_s2, done)
+                                       : std::numeric_limits<double>::quiet_NaN();  // nothing tallied
         if (target_kept > 0) {
             res.stop_reason = "target_rel_error";
             break;

@@ -96,7 +96,8 @@ struct ForwardResult {
                                                // and round 0 dropped when the batches were split)
     double reduce_seconds = 0.0;               // counters, sparse tally reduction, halo exchange
     double replicated_gb = 0.0;                // per-rank memory of the replicated arrays
-    double rel_error = 0.0;                    // relative standard error of diffuse_volume (all bands)
+    double rel_error = 0.0;                    // relative standard error of diffuse_volume (all bands);
+                                               // NaN when no diffuse power was tallied (unknown)
     std::string stop_reason;                   // "photons", "time_budget", "target_rel_error"
     std::string kernel;                        // the path kernel that traced: "lanes" or "scalar"
 };

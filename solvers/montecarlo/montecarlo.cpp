@@ -1,5 +1,10 @@
 #include "solvers/montecarlo/montecarlo.h"
 
+#include <fmt/format.h>
+
+#include <cmath>
+#include <string>
+
 #include "solvers/montecarlo/forward.h"
 #include "solvers/montecarlo/path_tracer.h"
 #include "src/core/log.h"
@@ -66,7 +71,7 @@ public:
             {"collisions_per_s_per_core_overall", coll_per_s_all},
             {"paths_per_s_per_core", paths_per_s},
             {"collisions_per_s_per_core", coll_per_s},
-            {"rel_error_total_diffuse", r.rel_error},
+            {"rel_error_total_diffuse", r.rel_error},  // NaN (JSON null): nothing tallied
             {"replicated_memory_gb", r.replicated_gb},
             {"energy", energy}};
         log::info("montecarlo: {} photons, {} collisions in {:.2f} s ({} batches, stop: {}, {} kernel): setup "
@@ -75,10 +80,16 @@ public:
                   r.trace_seconds, r.reduce_seconds);
         log::info("montecarlo: tracing {:.3g} paths/s/core, {:.3g} collisions/s/core ({:.3g} over the whole "
                   "solve; {:.1f} tallied cell segments per collision), relative error of the total diffuse power "
-                  "{:.2e}, replicated grid {:.3f} GB per rank",
+                  "{}, replicated grid {:.3f} GB per rank",
                   paths_per_s, coll_per_s, coll_per_s_all,
-                  static_cast<double>(r.segments) / std::max<double>(1.0, static_cast<double>(r.collisions)), r.rel_error,
+                  static_cast<double>(r.segments) / std::max<double>(1.0, static_cast<double>(r.collisions)),
+                  std::isnan(r.rel_error) ? std::string("unknown (no diffuse power tallied)")
+                                          : fmt::format("{:.2e}", r.rel_error),
                   r.replicated_gb);
+        if (r.collisions == 0 && r.photons > 0)
+            log::warn("montecarlo: none of the {} photons collided, so fluence_diffuse is 0 with an unknown error: "
+                      "the medium is too thin for this photon count; raise model.montecarlo.photons",
+                      r.photons);
     }
 
     bool renders_image() const override { return opt_.image; }

@@ -5,6 +5,7 @@
 
 #include "solvers/psf/psf_source.h"
 #include "src/core/report.h"
+#include "src/physics/lights.h"
 #include "src/render/raycaster.h"
 
 namespace nimbus {
@@ -32,7 +33,10 @@ public:
     }
 
     void check_layout(const Decomposition& d) const override { psf::check_decomposition(d); }
-    void check(const Scene&, const Decomposition& d, const Medium&) const override { psf::check_decomposition(d); }
+    void check(const Scene& s, const Decomposition& d, const Medium& m) const override {
+        psf::check_decomposition(d);
+        psf::check_light_volumes(static_cast<int>(make_lights(s).size()), m.bands);
+    }
     bool renders_image() const override { return true; }
     // The Gaussian pyramids: ~30 bytes per local cell per light volume (light terms x bands of
     // different sigma_t), measured on the default cloud: 271 bytes at 9 terms, ~540 at 17.

@@ -51,6 +51,18 @@ void check_decomposition(const Decomposition& d) {
                                 std::max(1, d.global().size(2) / kLevel0Ghost) == 1 ? "" : "s"));
 }
 
+void check_light_volumes(int nlights, const std::vector<BandOptics>& bands) {
+    std::vector<double> sigma;  // distinct sigma_t: bands sharing it share the light volumes
+    for (const BandOptics& o : bands)
+        if (std::find(sigma.begin(), sigma.end(), o.sigma_t) == sigma.end()) sigma.push_back(o.sigma_t);
+    const int groups = static_cast<int>(sigma.size());
+    if (nlights * groups <= kMaxComp) return;
+    const std::string terms = groups == 1 ? fmt::format("{} light terms", nlights)
+                                          : fmt::format("{} light terms x {} bands of different sigma_t", nlights, groups);
+    throw Error(fmt::format("model psf: {} need {} light volumes, more than the {} supported; lower sky.directions{}",
+                            terms, nlights * groups, kMaxComp, groups == 1 ? "" : " or give bands equal sigma_t"));
+}
+
 PsfSource::PsfSource(const SolveContext& ctx, const PsfOptions& opt)
     : lights_(ctx.light.lights), step_growth_(opt.step_growth) {
     const Medium& m = ctx.medium;
@@ -79,11 +91,7 @@ PsfSource::PsfSource(const SolveContext& ctx, const PsfOptions& opt)
     check_collective(d.comm(), nl > 0,
                      "model psf: the scene has no light to blur (sun disabled, no sky); enable [sun] or "
                      "give sky.radiance");
-    check_collective(d.comm(), nl * ngroups_ <= kMaxComp,
-                     fmt::format("model psf: {} light terms x {} bands of different sigma_t need {} light "
-                                 "volumes, more than the {} supported; lower sky.directions or give bands "
-                                 "equal sigma_t",
-                                 nl, ngroups_, nl * ngroups_, kMaxComp));
+    check_light_volumes(nl, m.bands);  // the same on every rank
     check_collective(d.comm(), static_cast<int>(ctx.light.tau_rho.size()) == nl,
                      "model psf: the light pass must provide tau_rho for every light term");
 

@@ -43,6 +43,11 @@ inline constexpr int kLevel0Ghost = 3;
 // alike; run by the model's pre-flight check and again by PsfSource.
 void check_decomposition(const Decomposition& d);
 
+// What the model needs of the lights: one light volume per light term and band of distinct
+// sigma_t, at most 64 in all. Throws Error (the same on every rank); run by the pre-flight check
+// (so `nimbus info` says it too) and again by PsfSource.
+void check_light_volumes(int nlights, const std::vector<BandOptics>& bands);
+
 struct BandPsf {
     double sigma_s = 0.0;   // 1/m per unit density
     double a_over_b = 0.0;  // absorption / scattering

@@ -78,6 +78,32 @@ void prepare_output_dir(MPI_Comm comm, const std::string& dir, CreatedFolders& c
     check_collective(comm, msg.empty(), msg);
 }
 
+// The run's outputs must not replace its input density file (a run with output.dir and
+// output.name pointing at medium.file used to overwrite the user's data, and the next run failed
+// to read it). Rank 0 decides (the output folder exists by now); every rank fails together.
+void check_outputs_spare_input(MPI_Comm comm, const Scene& scene) {
+    int rank = 0;
+    MPI_Comm_rank(comm, &rank);
+    std::string msg;
+    if (rank == 0 && !scene.medium.file.empty()) {
+        const fs::path stem = fs::path(scene.output.dir) / scene.output.name;
+        std::vector<std::string> outputs;
+        if (scene.output.hdf5) outputs = {".h5", ".xdmf"};
+        if (scene.output.image) outputs.insert(outputs.end(), {".exr", ".png"});
+        for (const std::string& ext : outputs) {
+            std::error_code ec;
+            const fs::path out = stem.string() + ext;
+            if (fs::equivalent(out, scene.medium.file, ec) && !ec) {
+                msg = fmt::format("output '{}' would overwrite the density file medium.file = \"{}\": choose another "
+                                  "output.dir or output.name",
+                                  out.string(), scene.medium.file);
+                break;
+            }
+        }
+    }
+    check_collective(comm, msg.empty(), msg);
+}
+
 nlohmann::json library_versions() {
     int mpi_major = 0, mpi_minor = 0;
     MPI_Get_version(&mpi_major, &mpi_minor);
@@ -217,7 +243,10 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
         scene.validate();
     });
     CreatedFolders created;  // removed again unless the outputs are committed
-    if (scene.output.hdf5 || scene.output.image) prepare_output_dir(comm, scene.output.dir, created);
+    if (scene.output.hdf5 || scene.output.image) {
+        prepare_output_dir(comm, scene.output.dir, created);
+        check_outputs_spare_input(comm, scene);
+    }
 
     const Decomposition d(comm, scene.grid.n, scene.grid.process_grid, scene.grid.periodic);
     log_scene(scene, d, *model);

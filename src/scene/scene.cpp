@@ -57,6 +57,15 @@ void validate_sources(const Scene& scene) {
                     fmt::format("{}.power: band '{}' emits but its sigma_t is 0 (a medium without "
                                 "extinction); give the band sigma_t > 0 or the source power 0 in it",
                                 key, scene.bands[bb].name));
+            // Periodic on every axis, nothing leaves; at albedo 1 nothing is absorbed either:
+            // the emitted power piles up without a steady state (Monte Carlo's photons would
+            // never end, diffusion's system is singular).
+            require(!(p > 0 && grid.periodic[0] && grid.periodic[1] && grid.periodic[2] &&
+                      scene.bands[bb].albedo == 1.0),
+                    fmt::format("{}.power: band '{}' emits into a domain periodic along x, y and z with albedo 1: "
+                                "its light can neither leave nor be absorbed, so there is no steady state; give "
+                                "the band albedo < 1, or leave an axis non-periodic",
+                                key, scene.bands[bb].name));
         }
         require(!source_cells(src, grid).empty(),
                 fmt::format("{}.lo/hi cover no cell centre of the grid (domain [0, {}] x [0, {}] x [0, {}] in {})",
@@ -121,6 +130,9 @@ bool camera_sees_domain(const CameraSpec& c, const GridSpec& g) {
     return false;
 }
 
+// The smallest cell edge a scene may have, metres (Scene::validate).
+constexpr double kMinCellSize = 1e-9;
+
 void Scene::validate() const {
     for (int d = 0; d < 3; ++d)
         require(grid.n[d] > 0, fmt::format("grid.n{} = {} must be >= 1 (zero-size grid)", "xyz"[d], grid.n[d]));
@@ -129,8 +141,17 @@ void Scene::validate() const {
     const double cells = static_cast<double>(grid.n[0]) * grid.n[1] * grid.n[2];
     require(cells <= 0x1p50, fmt::format("grid.n = [{}, {}, {}] has {:.3g} cells; at most 2^50 = {:.3g} are supported",
                                          grid.n[0], grid.n[1], grid.n[2], cells, 0x1p50));
-    require(std::isfinite(grid.h()) && grid.h() > 0,
-            fmt::format("grid.cell_size = {} must be > 0", grid.cell_size));
+    require(std::isfinite(grid.unit_scale) && grid.unit_scale > 0,
+            fmt::format("grid.unit_scale = {} must be finite and > 0 (metres per unit)", grid.unit_scale));
+    require(std::isfinite(grid.cell_size) && grid.cell_size > 0,
+            fmt::format("grid.cell_size = {} must be finite and > 0", grid.cell_size));
+    // Radiative transfer (geometric optics) needs cells far larger than the wavelength; a
+    // nanometre is a bound no medium reaches, and it keeps h², 1/h and the like normal doubles
+    // (a unit_scale of 1e-320 gave NaN and "relative change ()" in the solvers).
+    require(grid.h() >= kMinCellSize,
+            fmt::format("grid.cell_size x grid.unit_scale = {:.3g} m: cells below {:g} m are outside radiative "
+                        "transfer (far below the wavelength of light)",
+                        grid.h(), kMinCellSize));
     const double extent = std::max({grid.n[0], grid.n[1], grid.n[2]}) * grid.h();
     require(extent <= kFloatMax,
             fmt::format("grid.cell_size = {} puts the domain's side at {:.3g} m, beyond single precision ({:.3g})",
@@ -176,6 +197,12 @@ void Scene::validate() const {
     require(norm(cross(view, camera.up)) > 1e-9 * norm(view) * norm(camera.up),
             "camera.up is parallel to the view direction camera.look_at - camera.position");
     if (output.image) {
+        // The image's colours: one band is gray, three are r, g, b (src/render, the Monte Carlo
+        // path tracer alike); any other count used to fail only after the whole solve.
+        require(nbands() == 1 || nbands() == 3,
+                fmt::format("output.image = true: the image maps 1 band (gray) or 3 bands (r, g, b), and the "
+                            "scene has {} [[optics]] tables: give 1 or 3, or set output.image = false",
+                            nbands()));
         const double h = grid.h();
         require(camera_sees_domain(camera, grid),
                 fmt::format("camera.look_at: the camera looks at nothing: the domain [0, {:.4g}] x [0, {:.4g}] x "

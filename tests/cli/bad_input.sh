@@ -103,6 +103,18 @@ expect_error "KSPSetUp (model.diffusion.petsc_options = .*) failed with PETSc er
 # Unwritable output folder: a path below a regular file.
 out=$(timeout 120 "$mpiexec" -n "$np" "$nimbus" run "${small[@]}" --out /proc/version/x 2>&1); code=$?
 if [ $code -ne 0 ] && [ $code -ne 124 ] && echo "$out" | grep -q "nimbus: error:.*not writable"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: unwritable output folder (exit $code)"; echo "$out" | tail -3; fi
+# An output that would replace the run's own density file (it used to, silently): refused, the
+# file untouched.
+mkdir -p "$tmp/ow"
+/usr/bin/python3 -c "import struct; open('$tmp/ow/nimbus.h5', 'wb').write(struct.pack('<1152f', *([0.5] * 1152)))"
+cp "$tmp/ow/nimbus.h5" "$tmp/ow_copy"
+out=$(timeout 120 "$mpiexec" -n "$np" "$nimbus" run "${small[@]}" --set 'medium.kind="raw"' \
+  --set "medium.file=\"$tmp/ow/nimbus.h5\"" --out "$tmp/ow" 2>&1); code=$?
+if [ $code -ne 0 ] && [ $code -ne 124 ] && echo "$out" | grep -q "nimbus: error: output '.*nimbus.h5' would overwrite the density file medium.file" &&
+   cmp -s "$tmp/ow/nimbus.h5" "$tmp/ow_copy"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: output over medium.file (exit $code)"; echo "$out" | tail -3; fi
+# model psf's light volumes (64 at most): info says it, before any run.
+SUB=info expect_error "model psf: 65 light terms need 65 light volumes, more than the 64 supported; lower sky.directions" \
+  "${small[@]}" --set 'model.name="psf"' --set "sky.directions=64"
 # More ranks than z cells.
 if [ "$np" -gt 1 ]; then expect_error "no cells" --set "grid.n=[8,8,1]"; fi
 # The PETSc cross-check path needs slabs along z: the message names the keys.

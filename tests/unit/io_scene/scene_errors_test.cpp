@@ -102,8 +102,11 @@ TEST(SceneErrors, IntegersBeyondSixtyFourBitsAreRefused) {
                                   "9223372036854775807"}) {
         const std::string text = kBase + "[model.montecarlo]\nseed = " + big + "\n";
         expect_error(text, "seed = " + big, {"model.montecarlo.seed", "beyond the 64-bit integer range",
-                                               "[0, 9223372036854775806]"});
+                                               "(at most 9223372036854775806)"});
     }
+    // A float literal that is a whole number too large for 64 bits: too large, with the bound.
+    expect_error(kBase + "[model.montecarlo]\nphotons = 1e21\n", "photons = 1e21",
+                 {"model.montecarlo.photons = 1e+21 is too large (at most"});
     EXPECT_NO_THROW(load_scene_string(kBase + "[model.montecarlo]\nseed = 9223372036854775806\n", "ok.toml"));
     const std::string negative = kBase + "[model.montecarlo]\nseed = -99999999999999999999\n";
     expect_error(negative, "seed = -9", {"model.montecarlo.seed", "beyond the 64-bit integer range"});
@@ -180,7 +183,28 @@ TEST(SceneErrors, BandNames) {
         EXPECT_EQ(std::string(e.what()).rfind("bad.toml: --set optics[1].name=\"gray\": optics[1].name = ", 0), 0u)
             << e.what();
     }
-    EXPECT_NO_THROW(load_scene_string(kBase + "[[optics]]\nname = \"0.55 um (green)\"\n", "ok.toml"));
+    EXPECT_NO_THROW(
+        load_scene_string(kBase + "[[optics]]\nname = \"0.55 um (green)\"\n[output]\nimage = false\n", "ok.toml"));
+}
+
+// The image maps 1 band (gray) or 3 (r, g, b): another count with an image is refused when the
+// scene is read (and so by `nimbus info`), not after the solve; without an image any count runs.
+TEST(SceneErrors, AnImageNeedsOneOrThreeBands) {
+    const std::string two = kBase + "[[optics]]\nname = \"b2\"\n";
+    auto refused = [](const std::string& text, const std::string& count) {
+        try {
+            load_scene_string(text, "bad.toml");
+            ADD_FAILURE() << "no error for:\n" << text;
+        } catch (const Error& e) {  // about the scene as a whole: located at the file
+            EXPECT_EQ(std::string(e.what()),
+                      "bad.toml: output.image = true: the image maps 1 band (gray) or 3 bands (r, g, b), and the "
+                      "scene has " + count + " [[optics]] tables: give 1 or 3, or set output.image = false");
+        }
+    };
+    refused(two, "2");
+    refused(two + "[[optics]]\nname = \"b3\"\n[[optics]]\nname = \"b4\"\n", "4");
+    EXPECT_NO_THROW(load_scene_string(two + "[output]\nimage = false\n", "ok.toml"));
+    EXPECT_NO_THROW(load_scene_string(two + "[[optics]]\nname = \"b3\"\n", "ok.toml"));
 }
 
 // output.name names <name>.h5, .xdmf, .exr, .png in output.dir, and the XDMF file references
@@ -232,7 +256,20 @@ TEST(SceneErrors, Sources) {
     expect_error(edit("name = \"single\"", dom + clear_band + "[[sources]]\nlo = [0, 0, 0]\nhi = [1, 1, 1]\npower = [1, 2]"),
                  "power = [1, 2]", {"sources[0].power: band 'clear' emits but its sigma_t is 0"});
     EXPECT_NO_THROW(load_scene_string(
-        edit("name = \"single\"", dom + clear_band + "[[sources]]\nlo = [0, 0, 0]\nhi = [1, 1, 1]\npower = [1, 0]"), "ok.toml"));
+        edit("name = \"single\"",
+             dom + clear_band + "[[sources]]\nlo = [0, 0, 0]\nhi = [1, 1, 1]\npower = [1, 0]\n[output]\nimage = false"),
+        "ok.toml"));
+    // Periodic along x, y and z with albedo 1: nothing leaves and nothing is absorbed (Monte
+    // Carlo's photons never ended): refused when the scene is read.
+    const std::string closed = edit("name = \"single\"", dom + "[[sources]]\nlo = [0, 0, 0]\nhi = [1, 1, 1]");
+    std::string lossless = closed;
+    lossless.replace(lossless.find("albedo = 0.9"), 12, "albedo = 1.0");
+    lossless.replace(lossless.find("cell_size = 1.0"), 15, "cell_size = 1.0\nperiodic = [true, true, true]");
+    expect_error(lossless, "[[sources]]", {"sources[0].power: band 'gray' emits into a domain periodic along x, y and z with "
+                                "albedo 1: its light can neither leave nor be absorbed"});
+    std::string absorbing = closed;  // albedo 0.9: a steady state exists
+    absorbing.replace(absorbing.find("cell_size = 1.0"), 15, "cell_size = 1.0\nperiodic = [true, true, true]");
+    EXPECT_NO_THROW(load_scene_string(absorbing, "ok.toml"));
 }
 
 // Names from the papers for our models get a pointer to the model, not a bare "not allowed".

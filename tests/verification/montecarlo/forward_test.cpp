@@ -486,6 +486,20 @@ TEST(Forward, StopsAtTargetRelativeError) {
     EXPECT_LT(r.rel_error, 0.05);
 }
 
+// Batches that tally no diffuse power (here a slab of optical depth 1e-12: no photon collides)
+// estimate no error: the target is not met by their zero spread (it was, after 8 empty batches),
+// the run goes to its photon count, and the error is unknown (NaN), not 0.
+TEST(Forward, EmptyTalliesMeetNoTargetAndLeaveTheErrorUnknown) {
+    Slab slab(MPI_COMM_WORLD, 1e-12, 0.9, 0.0);
+    MonteCarloOptions o = options(64000);
+    o.target_rel_error = 0.05;
+    const ForwardResult r = trace_forward(slab.d, slab.m, {beam(1.0)}, o);
+    EXPECT_EQ(r.collisions, 0);
+    EXPECT_EQ(r.stop_reason, "photons");
+    EXPECT_EQ(r.batches, o.batches);
+    EXPECT_TRUE(std::isnan(r.rel_error));
+}
+
 // The target is tested batch by batch from kMinBatchesForTarget on, so the run keeps the same
 // first K batches on any rank count (rounds of P batches used to decide per round: 2 batches
 // on 1-2 ranks, 12 on 3, fields 4% apart) and never judges from fewer than 8 batches.
