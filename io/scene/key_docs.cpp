@@ -19,7 +19,7 @@ const std::vector<KeyDoc>& scene_key_docs() {
 
         {"grid", "The cell grid: the domain is the box [0, n × cell_size] along x, y, z (z up)."},
         {"grid.n", "cells along x, y, z, each >= 1"},
-        {"grid.cell_size", "cell edge length, in grid.unit (> 0)"},
+        {"grid.cell_size", "cell edge length, in grid.unit (> 0; at least 1 nm in metres)"},
         {"grid.unit", "unit of cell_size, [[sources]] lo/hi: m | km | cm | mm | custom"},
         {"grid.unit_scale",
          "metres per unit (> 0); required with unit = \"custom\", refused otherwise"},
@@ -27,7 +27,8 @@ const std::vector<KeyDoc>& scene_key_docs() {
          "ranks along x, y, z; 0 = chosen so that the product is the rank count; all 0 = slabs "
          "along z"},
         {"grid.periodic",
-         "periodic faces along x, y, z; z only if every light is horizontal (never dom, lpm, psf)"},
+         "periodic faces along x, y, z; z only if every light is horizontal (never dom, lpm, psf); "
+         "all three only with albedo < 1 where [[sources]] emit"},
 
         {"medium", "The density rho (dimensionless): kappa = rho × sigma_t of each band."},
         {"medium.kind", "cumulus | box | sphere, or read from medium.file: hdf5 | raw"},
@@ -60,8 +61,8 @@ const std::vector<KeyDoc>& scene_key_docs() {
          "value at the centre (>= 0); the ellipsoids add, capped at 1, times medium.density"},
 
         {"optics",
-         "One table per colour band (at least one); a per-band value elsewhere is one number for "
-         "every band or one per band, in this order."},
+         "One table per colour band (at least one; 1 or 3 with an image: gray or r, g, b); a "
+         "per-band value elsewhere is one number for every band or one per band, in this order."},
         {"optics.name",
          "band name: unique, not empty, no '/' or ':'; names the band's HDF5 datasets"},
         {"optics.sigma_t", "extinction per unit density, 1/m (>= 0): kappa = rho × sigma_t"},
@@ -219,7 +220,8 @@ const std::vector<KeyDoc>& scene_key_docs() {
          "output folder, from the working directory (not the scene file's); created if missing"},
         {"output.name", "file name stem: not empty, no '/' or ':'"},
         {"output.hdf5", "write <name>.h5 (fields, effective scene, run report) and .xdmf"},
-        {"output.image", "render and write the image, <name>.exr and its preview <name>.png"},
+        {"output.image", "render and write the image, <name>.exr and its preview <name>.png "
+                         "(needs 1 or 3 bands)"},
     };
     return docs;
 }

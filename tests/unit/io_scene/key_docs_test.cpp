@@ -116,7 +116,7 @@ TEST(KeyDocs, EveryMeaningIsOfAWrittenKey) {
         EXPECT_TRUE(seen.insert(d.path).second) << d.path << " is documented twice";
         EXPECT_FALSE(d.meaning.empty()) << d.path;
     }
-    EXPECT_EQ(scene_key_meaning("grid.cell_size"), "cell edge length, in grid.unit (> 0)");
+    EXPECT_EQ(scene_key_meaning("grid.cell_size"), "cell edge length, in grid.unit (> 0; at least 1 nm in metres)");
     EXPECT_TRUE(scene_key_meaning("grid.no_such_key").empty());
 }
 
