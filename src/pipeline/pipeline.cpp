@@ -104,6 +104,22 @@ void check_outputs_spare_input(MPI_Comm comm, const Scene& scene) {
     check_collective(comm, msg.empty(), msg);
 }
 
+// An output this run does not write (output.hdf5 or output.image false) that an earlier run left
+// under the same name stays: said, so that an image and fields of different runs are not taken
+// for one run's. Rank 0 (the output folder exists by now).
+void warn_of_outputs_left(MPI_Comm comm, const Scene& scene) {
+    int rank = 0;
+    MPI_Comm_rank(comm, &rank);
+    if (rank != 0) return;
+    const fs::path stem = fs::path(scene.output.dir) / scene.output.name;
+    std::error_code ec;
+    const std::string h5 = stem.string() + ".h5", exr = stem.string() + ".exr";
+    if (!scene.output.hdf5 && fs::exists(h5, ec))
+        log::warn("output.hdf5 = false: {} (and its .xdmf) from an earlier run stays beside this run's image", h5);
+    if (!scene.output.image && fs::exists(exr, ec))
+        log::warn("output.image = false: {} (and its .png) from an earlier run stays beside this run's fields", exr);
+}
+
 nlohmann::json library_versions() {
     int mpi_major = 0, mpi_minor = 0;
     MPI_Get_version(&mpi_major, &mpi_minor);
@@ -209,6 +225,16 @@ void check_finite_image(const Image& image, MPI_Comm comm) {
                                 bad));
 }
 
+// The medium kinds a medium.<key> applies to (io/scene/key_docs.cpp); empty: every kind.
+std::vector<std::string> medium_key_kinds(const std::string& key) {
+    if (key.rfind("noise_", 0) == 0 || key == "seed" || key.rfind("ellipsoid", 0) == 0) return {"cumulus"};
+    if (key == "box_lo" || key == "box_hi") return {"box"};
+    if (key == "sphere_center" || key == "sphere_radius") return {"sphere"};
+    if (key == "file") return {"hdf5", "raw"};
+    if (key == "dataset") return {"hdf5"};
+    return {};
+}
+
 Scene load_run_scene(MPI_Comm comm, const RunOptions& opts) {
     Scene scene;
     run_collective(comm, [&] {
@@ -224,6 +250,18 @@ Scene load_run_scene(MPI_Comm comm, const RunOptions& opts) {
         const std::string rest = key.substr(6), sub = rest.substr(0, rest.find('.'));
         if (sub != rest && sub != scene.model.name)
             log::warn("--set {}: ignored, this run's model is '{}' (model.name)", key, scene.model.name);
+    }
+    // The same for a medium key that the medium's kind does not read.
+    const std::string kind = to_string(scene.medium.kind);
+    for (const std::string& o : opts.overrides) {
+        const std::string key = o.substr(0, o.find('='));
+        if (key.rfind("medium.", 0) != 0) continue;
+        const std::string rest = key.substr(7), name = rest.substr(0, rest.find_first_of(".["));
+        const std::vector<std::string> kinds = medium_key_kinds(name);
+        if (kinds.empty() || std::find(kinds.begin(), kinds.end(), kind) != kinds.end()) continue;
+        std::string applies;
+        for (const std::string& k : kinds) applies += (applies.empty() ? "" : " | ") + k;
+        log::warn("--set {}: ignored, medium.kind is '{}' (it applies to {})", key, kind, applies);
     }
     return scene;
 }
@@ -246,6 +284,7 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
     if (scene.output.hdf5 || scene.output.image) {
         prepare_output_dir(comm, scene.output.dir, created);
         check_outputs_spare_input(comm, scene);
+        warn_of_outputs_left(comm, scene);
     }
 
     const Decomposition d(comm, scene.grid.n, scene.grid.process_grid, scene.grid.periodic);

@@ -56,6 +56,16 @@ check "montecarlo: idle ranks warned" 0 "batches = 32 on 64 ranks: .* so 32 rank
 out=$("$nimbus" info --ranks 64 --set model.montecarlo.batches=128 2>&1); code=$?
 if [ $code -eq 0 ] && ! echo "$out" | grep -q "trace nothing"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: montecarlo batches a multiple of the ranks warns (exit $code)"; echo "$out" | tail -3; fi
 
+# A --set medium key that the medium's kind does not read is said (the default medium is a cumulus).
+check "medium key of another kind warned" 0 "\-\-set medium.sphere_radius: ignored, medium.kind is 'cumulus' (it applies to sphere)" \
+  info "${small[@]}" --set medium.sphere_radius=0.2
+out=$("$nimbus" info "${small[@]}" --set 'medium.kind="sphere"' --set medium.sphere_radius=0.2 2>&1); code=$?
+if [ $code -eq 0 ] && ! echo "$out" | grep -q "ignored"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: a medium key of the kind warns (exit $code)"; echo "$out" | tail -3; fi
+# An output this run does not write, left by an earlier run under the same name, is said.
+"$nimbus" run "${small[@]}" --out "$tmp/left" > /dev/null 2>&1
+check "output left by an earlier run warned" 0 "output.hdf5 = false: .*left/nimbus.h5 (and its .xdmf) from an earlier run stays" \
+  run "${small[@]}" --set output.hdf5=false --out "$tmp/left"
+
 # info refuses what run refuses, with the same message.
 check "info: duplicate band name" 1 "optics\[1\].name = \"r\" repeats optics\[0\].name" info --set 'optics[1].name="r"'
 check "info: band name with /" 1 "optics\[2\].name = \"b/x\" is not a valid band name" info --set 'optics[2].name="b/x"'
