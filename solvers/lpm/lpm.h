@@ -6,7 +6,7 @@
 //                       never leave a layer and, on periodic x/y, cycle until all their light is
 //                       deposited (a thin periodic layer: 1.6x / 1.23x the fluence at p = 3 / 5;
 //                       a plume in a periodic domain: 4.7x at p = 5). Even p errs low instead
-//                       (0.83 / 0.90 / 0.95 at p = 4 / 6 / 8). Odd p on periodic x/y warns.
+//                       (0.83 / 0.91 / 0.95 at p = 4 / 6 / 8). Odd p on periodic x/y warns.
 //   refinement     1    map rays per cell along each map axis (R x R per cell face)
 //   k              1    coarse bins of the unpropagated light U: 6 k² (k divides p)
 //   solution_bins  1    1: fluence only; 4: fluence and flux F (first moment, for the renderer's

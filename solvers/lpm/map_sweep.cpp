@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <span>
 
 #include "solvers/lpm/gather_kernel.h"
@@ -15,9 +16,9 @@
 namespace nimbus::lpm {
 namespace {
 
-// Cyclic sweeps along a periodic map axis stop when the map carries less than this fraction
-// of its power after the first pass (the rest is counted as `truncated`), or after this many
-// passes.
+// Cyclic sweeps along a periodic map axis (sweep_lateral): the filling passes end when the
+// light the map still carries from its dark start is below this fraction of its power after
+// the first cycle, or so that at most this many passes are run, the recorded ones included.
 constexpr double kCyclicTolerance = 1e-9;
 constexpr long kMaxCyclicPasses = 100;
 
@@ -323,6 +324,7 @@ private:
 
     void sweep_z_group(int grp, sweep::ChainIO& io);
     bool pass_ends_sweep(long t);
+    void discard_path_integrals();
     void exchange_crossing_rays();
     void pack_crossing_rays();
     void unpack_crossing_rays();
@@ -358,11 +360,17 @@ private:
     StepGeometry geo_;
     std::vector<double> work_;
     std::vector<double> A_, B_;  // rays at the start and end of a step, ds_ per direction
-    // ±X/±Y maps: each direction's slot shift along v in the step, the exchange buffers, and
-    // the map's power (all ranks) after its first pass.
+    // ±X/±Y maps: each direction's slot shift along v in the step, the exchange buffers.
     std::vector<int> dSv_;
     std::vector<double> to_hi_, to_lo_, from_lo_, from_hi_;
-    double first_pass_power_ = 0.0;
+    // Cyclic sweeps (periodic map axis): the lattice cycle K in passes, the map's power (all
+    // ranks) after each pass (P[0] = 0), the pass after which recording ends and this rank's
+    // power when it started. Steps deposit and count escapes, with weight record_weight_ = 1/K,
+    // only while recording_ (always, but in the filling passes of a cyclic sweep).
+    long cycle_ = 1, record_end_ = 0;
+    std::vector<double> pass_power_;
+    double recorded_start_power_ = 0.0, record_weight_ = 1.0;
+    bool recording_ = true;
 };
 
 MapSweep::MapSweep(const Decomposition& d, int face, const MapInputs& in, MapAccumulators& acc)
@@ -481,12 +489,12 @@ long MapSweep::step_of_layer(int layer) const {
 }
 
 // Step t of direction l: every ray of map A crosses one layer (eq. 4) into map B, its path
-// integrals accumulated into φ_l; the light leaving the domain sideways is counted as escaped.
-// Returns the step's slot shift along v.
+// integrals accumulated into φ_l; the light leaving the domain sideways is counted as escaped
+// (while recording_). Returns the step's slot shift along v.
 int MapSweep::run_direction(int l, long t, const double* A, double* B) {
     const int la = layer_of_step(t % m_.n[m_.a]) - m_.alo;
     const size_t i = static_cast<size_t>(l);
-    step_geometry(tu_[i], tv_[i], t, R_, path_[i], wn_[i], m_.Wu, geo_);
+    step_geometry(tu_[i], tv_[i], t, R_, path_[i], wn_[i] * record_weight_, m_.Wu, geo_);
     const int mb = ang_.coarse_of(face_ * nd_ + l) - face_ * k2_;
     Escapes esc;
     transport_step(
@@ -494,7 +502,8 @@ int MapSweep::run_direction(int l, long t, const double* A, double* B) {
         K_.data() + plane_ * static_cast<size_t>(la),
         Us_.data() + K_.size() * static_cast<size_t>(mb) + plane_ * static_cast<size_t>(la),
         phi_.data() + plane_ * i, A, B, esc, work_);
-    const double e = ef_[i];
+    if (!recording_) return geo_.dSv;  // a filling pass of a cyclic sweep
+    const double e = ef_[i] * record_weight_;
     for (int side = 0; side < 2; ++side) {
         acc_.escaped[m_.ua][side] += esc.u[side] * e;
         acc_.escaped[m_.va][side] += esc.v[side] * e;
@@ -643,28 +652,50 @@ void MapSweep::sweep_z_group(int grp, sweep::ChainIO& io) {
 }
 
 // Every slab at once; rays crossing a slab boundary are exchanged after each step.
-// A periodic map axis (x or y) is swept cyclically: the rays leaving the far face
-// re-enter at the near face (no new source after the first pass) until the power the
-// map still carries is below kCyclicTolerance of what it carried after the first pass.
+//
+// A periodic map axis (x or y, n cells) is swept cyclically, the rays leaving the far face
+// re-entering at the near one. A pass moves the lattice of a direction of tangents t by
+// n t R slots along u and v (t = (2i + 1 - p)/p): it returns to its sub-slot offsets only
+// after K = p / gcd(p, n R) passes (K = 1 when n R is a multiple of p). Summing passes of the
+// first pass's light (source on the first pass only, the paper's cyclic mapping) is therefore
+// exact only for K = 1: otherwise each pass's rays sit at other offsets, so the light from a
+// given distance along a line is carried by rays up to a slot away, i.e. up to 1/|t| steps
+// too near or too far (10-20% across the layers of a uniform periodic slab at n = 10, p = 6).
+// Instead Ũ drives every pass: the filling passes only carry light (no deposits, no escapes
+// counted) until what the map still lacks from its dark start is
+// below kCyclicTolerance (the light of the first K passes still in it, P_k - P_{k-K}: the
+// map's state is K-periodic once its dark start has died away), then the K passes of one
+// lattice cycle are recorded with weight 1/K: every ray carries its whole straight line's
+// light, the K offsets are averaged, and source = deposited + escaped + truncated holds
+// exactly (truncated = what the map gained over the cycle, / K).
 void MapSweep::sweep_lateral() {
     A_.assign(ds_ * static_cast<size_t>(nd_), 0.0);
     B_.assign(A_.size(), 0.0);
     dSv_.assign(static_cast<size_t>(nd_), 0);
-    first_pass_power_ = 0.0;
+    const int n = m_.n[m_.a];
+    const bool cyclic = d_.periodic(m_.a);
+    cycle_ = cyclic ? p_ / std::gcd(p_, n * R_) : 1;
+    recording_ = !cyclic;
+    record_weight_ = 1.0;
+    pass_power_.assign(1, 0.0);
     for (long t = 0;; ++t) {
-        if (t > 0 && t % m_.n[m_.a] == 0 && pass_ends_sweep(t)) break;
+        if (t > 0 && t % n == 0 && pass_ends_sweep(t)) break;
         for (int l = 0; l < nd_; ++l)
             dSv_[static_cast<size_t>(l)] = run_direction(l, t, rays(A_, l), rays(B_, l));
         exchange_crossing_rays();
-        deposit(layer_of_step(t % m_.n[m_.a]) - m_.alo, 0, nd_);
+        if (recording_) deposit(layer_of_step(t % n) - m_.alo, 0, nd_);
+        else discard_path_integrals();
         std::swap(A_, B_);
     }
+    record_weight_ = 1.0;
 }
 
 // At the end of a pass (step t): on an open map axis the sweep ends, the light left in the
-// map leaving through the far face; on a periodic one it ends when the map's power (all
-// ranks) is down to kCyclicTolerance of the first pass's, or after kMaxCyclicPasses passes,
-// the rest counted as truncated. Ũ drives the first pass only.
+// map leaving through the far face. On a periodic one (sweep_lateral), after filling pass k
+// the recording of passes k+1 .. k+K starts when P_k - P_{k-K} <= kCyclicTolerance P_K
+// (P_k: the map's power after pass k, all ranks), when P_k = 0 (no light crosses the seam, so
+// none from earlier periods ever arrives: the dark start is the steady state) or when the last
+// of them would be the kMaxCyclicPasses-th; after the last one the sweep ends.
 bool MapSweep::pass_ends_sweep(long t) {
     double power = 0.0;
     for (int l = 0; l < nd_; ++l) power += map_power(l, rays(A_, l));
@@ -672,19 +703,28 @@ bool MapSweep::pass_ends_sweep(long t) {
         acc_.escaped[m_.a][far_side_] += power;
         return true;
     }
-    MPI_Allreduce(MPI_IN_PLACE, &power, 1, MPI_DOUBLE, MPI_SUM, d_.comm());
-    if (t == m_.n[m_.a]) {
-        first_pass_power_ = power;
-        std::fill(Us_.begin(), Us_.end(), 0.0);
-    }
-    if (power <= kCyclicTolerance * first_pass_power_ || t >= kMaxCyclicPasses * m_.n[m_.a]) {
-        double mine = 0.0;
-        for (int l = 0; l < nd_; ++l) mine += map_power(l, rays(A_, l));
-        acc_.truncated += mine;
+    const long pass = t / m_.n[m_.a];
+    if (recording_) {
+        if (pass < record_end_) return false;
+        acc_.truncated += (power - recorded_start_power_) * record_weight_;
         return true;
+    }
+    double all = power;
+    MPI_Allreduce(MPI_IN_PLACE, &all, 1, MPI_DOUBLE, MPI_SUM, d_.comm());
+    pass_power_.push_back(all);
+    const size_t k = static_cast<size_t>(pass), K = static_cast<size_t>(cycle_);
+    const bool filled = all == 0.0 || (k >= K && all - pass_power_[k - K] <= kCyclicTolerance * pass_power_[K]);
+    if (filled || pass + cycle_ >= kMaxCyclicPasses) {
+        recording_ = true;
+        record_end_ = pass + cycle_;
+        record_weight_ = 1.0 / static_cast<double>(cycle_);
+        recorded_start_power_ = power;
     }
     return false;
 }
+
+// A filling pass's step: its path integrals are not deposited.
+void MapSweep::discard_path_integrals() { std::fill(phi_.begin(), phi_.end(), 0.0); }
 
 // Hands the rays that left the rank's z range in this step (B's overflow rows) to the z
 // neighbours and takes theirs into B's edge rows: one message per neighbour and step, all

@@ -11,10 +11,16 @@
 // interpolates, so a beam keeps its profile exactly (no false scattering). Rays leaving the
 // domain sideways carry their power out (counted in `escaped`); entering rays start at L = 0
 // (vacuum: no diffuse light comes in; the sun enters as the first-scatter source in U).
-// Periodic x/y wrap instead (the paper's cyclic mapping); along a periodic map axis the map
-// is swept around again (rays leaving the far face re-enter at the near one, no new source)
-// until it carries less than 1e-9 of its first-pass power or 100 passes are done (the rest
-// is `truncated`: e.g. horizontal rays in an empty periodic layer, which never attenuate).
+// Periodic x/y wrap instead. Along a periodic map axis (n cells) the map is swept around
+// (rays leaving the far face re-enter at the near one), driven by Ũ on every pass: filling
+// passes (no deposits, no escapes counted) until the map holds the periodic steady state (the
+// light it still lacks from its dark start below 1e-9 of its power, or 100 passes), then one
+// lattice cycle of K = p / gcd(p, n R) passes is recorded, each with weight 1/K: a pass moves
+// a direction's ray lattice by n t R slots, back onto the same sub-slot offsets only after K
+// passes. (The paper's cyclic mapping, source on the first pass only and every pass recorded,
+// is exact only for K = 1: see sweep_lateral in map_sweep.cpp and the README.) What the map
+// gains over the recorded cycle, / K, is `truncated` (~0 once steady; e.g. horizontal rays of
+// odd p in a thin periodic layer, which attenuate slowly, may not be).
 //
 // Scattering is explicit (§3.3): rays are driven by the snapshot Ũ^m of the face's coarse bins
 // taken when the sweep starts (those bins of U are then emptied: all their light is carried by
@@ -57,7 +63,8 @@ struct MapAccumulators {
     Field<double>* flux = nullptr;     // 3 comps, or null
     double escaped[3][2] = {};         // W leaving the domain through its [axis][low, high] face
                                        // (this rank's share), accumulated
-    double truncated = 0.0;            // W dropped when a cyclic (periodic-axis) sweep stops
+    double truncated = 0.0;            // W a cyclic (periodic-axis) sweep's map gained over its
+                                       // recorded passes (/ K): not yet deposited
     double wait_seconds = 0.0;         // blocked on neighbours (pipeline fill, exchange)
 };
 

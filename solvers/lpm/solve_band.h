@@ -38,7 +38,7 @@ struct BandResult {
     double wait_seconds = 0.0;    // blocked on neighbours (this rank)
     double source = 0.0, escaped = 0.0, absorbed = 0.0, remaining = 0.0;  // W, global
     double escaped_face[3][2] = {};  // W through the domain face [axis][low, high], global
-    double truncated = 0.0;          // W dropped by cyclic sweeps of periodic axes, global
+    double truncated = 0.0;          // W left undeposited by cyclic sweeps of periodic axes, global
     std::vector<double> remaining_history;  // W unpropagated after each iteration, global
     double tail_factor = 0.0;        // geometric tail: rho/(1-rho) applied to the last increment
     int tail_solver_iterations = 0;  // diffusion tail: linear-solver iterations
