@@ -178,8 +178,24 @@ void log_scene(const Scene& s, const Decomposition& d, const ScatteringModel& mo
 void warn_if_dark(const Scene& scene, const Decomposition& d, const Medium& medium,
                   const std::vector<DirectionalLight>& lights) {
     std::int64_t filled = 0;
-    for_each_cell(d.local(), [&](int i, int j, int k) { filled += medium.rho(i, j, k) > 0; });
+    double rho_max = 0.0;
+    for_each_cell(d.local(), [&](int i, int j, int k) {
+        filled += medium.rho(i, j, k) > 0;
+        rho_max = std::max(rho_max, medium.rho(i, j, k));
+    });
     MPI_Allreduce(MPI_IN_PLACE, &filled, 1, MPI_INT64_T, MPI_SUM, d.comm());
+    MPI_Allreduce(MPI_IN_PLACE, &rho_max, 1, MPI_DOUBLE, MPI_MAX, d.comm());
+    double sigma_max = 0.0;
+    for (const BandOptics& o : medium.bands) sigma_max = std::max(sigma_max, o.sigma_t);
+    // A medium whose thickest cell is this thin does nothing visible; from a file it is most
+    // likely misread (a big-endian float32 0.5 read as little-endian is 8.8e-44).
+    const double tau_cell = rho_max * sigma_max * medium.grid.h;
+    if (filled > 0 && tau_cell < 1e-12)
+        log::warn("the medium is practically transparent: its densest cell is {:.3g} ({:.3g} optical depths){}",
+                  rho_max, tau_cell,
+                  scene.medium.kind == MediumSpec::Kind::raw
+                      ? "; medium.file is read as float32 little-endian, x fastest: is the file big-endian?"
+                      : "");
     bool lit = false;
     for (const auto& l : lights)
         for (double e : l.E0) lit = lit || e > 0;

@@ -66,6 +66,15 @@ if [ $code -eq 0 ] && ! echo "$out" | grep -q "ignored"; then pass=$((pass + 1))
 check "output left by an earlier run warned" 0 "output.hdf5 = false: .*left/nimbus.h5 (and its .xdmf) from an earlier run stays" \
   run "${small[@]}" --set output.hdf5=false --out "$tmp/left"
 
+# A big-endian raw file (0.5 everywhere) read as little-endian: densities of 8.8e-44, said.
+/usr/bin/python3 -c "import struct; open('$tmp/be.raw', 'wb').write(struct.pack('>1152f', *([0.5] * 1152)))"
+check "big-endian raw file warned" 0 "the medium is practically transparent: its densest cell is 8.83e-44 .* is the file big-endian?" \
+  run "${small[@]}" --set 'medium.kind="raw"' --set "medium.file=\"$tmp/be.raw\"" --set output.image=false --out "$tmp/be"
+
+# psf on cells of many optical depths (too bright there): said.
+check "psf on thick cells warned" 0 "model psf: cells up to 1[0-9.]* optical depths thick: .* too bright" \
+  run "${small[@]}" --set 'model.name="psf"' --set medium.density=12 --out "$tmp/psf_thick"
+
 # info refuses what run refuses, with the same message.
 check "info: duplicate band name" 1 "optics\[1\].name = \"r\" repeats optics\[0\].name" info --set 'optics[1].name="r"'
 check "info: band name with /" 1 "optics\[2\].name = \"b/x\" is not a valid band name" info --set 'optics[2].name="b/x"'
