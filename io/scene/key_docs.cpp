@@ -122,8 +122,7 @@ const std::vector<KeyDoc>& scene_key_docs() {
         {"render.step", "longest ray-march step, in cells (× the cell edge), in (0, 4]"},
         {"render.early_termination",
          "stop a view ray once what lies behind can change its pixel by at most this fraction, "
-         "in [0, 1) (model psf in mode scattering: once its transmittance is below this); 0 "
-         "marches every ray to its end"},
+         "in [0, 1); 0 marches every ray to its end"},
         {"render.emission_color",
          "modes emission and emission_absorption: C, the emitted radiance per unit extinction, "
          "W/(m² sr), per band"},

@@ -116,6 +116,9 @@ public:
         const double* b = a + kAngles;
         return below_table(l) * ((1.0 - fx) * ((1.0 - fy) * a[0] + fy * a[1]) + fx * ((1.0 - fy) * b[0] + fy * b[1]));
     }
+    // The largest weight_fast() can return: a bilinear interpolation of the table's nodes
+    // (all >= 0) times below_table() <= 1 is at most the largest node.
+    double max_weight() const { return table_.empty() ? 0.0 : *std::max_element(table_.begin(), table_.end()); }
     // G(l) = ∫ weight(l, θ) dω: 0 at l = 0, and ∝ l below the table (G ~ l (1+g)/(1-g) there), so
     // that a band without scattering (albedo 0: l = 0) and a nearly clear one get (nearly) nothing.
     double curved_integral(double l) const { return l > 0.0 ? below_table(l) * interp(curved_, l) : 0.0; }

@@ -258,6 +258,15 @@ void PsfSource::sample(const Vec3& x, const Vec3& w_out, double tau_view, double
     }
 }
 
+void PsfSource::radiance_bound(int nbands, double* H) const {
+    for (int b = 0; b < nbands; ++b) {
+        const BandPsf& o = bands_[static_cast<size_t>(b)];
+        double e0 = 0.0;
+        for (const DirectionalLight& light : lights_) e0 += band_value(light.E0, b);
+        H[b] = e0 * o.phase.max_weight();
+    }
+}
+
 void PsfSource::fluence(const Medium& m, const Decomposition& d, std::vector<Field<double>>& out) {
     prepare(d.local(), d);
     const int nl = static_cast<int>(lights_.size()), nb = static_cast<int>(bands_.size());

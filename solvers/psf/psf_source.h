@@ -65,6 +65,9 @@ public:
     double spacing(const Vec3& x, double tau_view, double s_view) const override;
     double spacing_bound(double tau_view, double s_view) const override;
     void sample(const Vec3& x, const Vec3& w_out, double tau_view, double s_view, double* H) const override;
+    // H_b <= Σ_l E0_l,b max P_MS weight of band b: sample()'s blurred transmittance is a convex
+    // combination of pyramid values, each an average of exp(-sigma_t tau) <= 1.
+    void radiance_bound(int nbands, double* H) const override;
 
     // Collective. The equivalent fluence_diffuse (README): at each owned cell with rho > 0, the
     // PSF radiance of a path with no view leg (l = l2, S = s2) integrated over all directions,

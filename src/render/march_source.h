@@ -9,8 +9,13 @@
 //   A_b += T_b rho sigma_s,b w,
 // and the compositor adds T_front A_b H_carried (composite.h). H_spec is the value at the
 // piece's first step with rho > 0: the carried value when no piece in front had medium.
-// Early termination is march.h's first test alone, max_b T_b < eps: H has no cheap bound, so
-// the per-pixel bound of march.h does not apply to this march.
+// Early termination is march.h's per-pixel rule, T_b < eps and T_b B_b <= eps C_b, with B_b
+// counting the source (finish_radiance_bound): S_b grows by a_b H_max,b (the step's J_b +
+// rho sigma_s,b H_b over max(kappa_b, 1/L) is at most the cell term plus a_b H_max,b), and B_b
+// by one S_b: a piece cut short may hand the pieces behind it another H (its last sample),
+// whose coefficient T_cut A_b <= T_cut a_b changes the pixel by at most T_cut a_b H_max,b. C
+// leaves out the carried terms A_b H (not known here, >= 0 when H >= 0), which only makes the
+// test stricter.
 #pragma once
 
 #include <bit>
@@ -98,7 +103,7 @@ long march_steps_source(const MarchView& v, const RaySteps& r, int m_begin, int 
         }
         st.tau += rho * r.ds;
         st.s += r.ds;
-        return !(Tmax < eps);
+        return !(Tmax < eps) || !negligible_behind(v, nb, eps, C, T);
     });
 }
 

@@ -278,15 +278,24 @@ Image render_image(const RenderInputs& in, const Decomposition& d, Report& repor
         sky.push_back(band_value(scene.background.color, b));
         ground_bound.push_back(ground->radiance_bound(b));
     }
-    finish_radiance_bound(volume, sky, ground_bound, d);  // early termination's bound (march.h)
+    // A view-path source (view_source.h) only in mode scattering; its S term a_b H_max,b.
+    ViewRaySource* source = scene.render.mode == RenderMode::scattering ? in.view_source : nullptr;
+    std::vector<double> path;
+    if (source) {
+        double H[kMaxBands];
+        source->radiance_bound(nb, H);
+        for (int b = 0; b < nb; ++b) {
+            const double a = in.medium.bands[static_cast<size_t>(b)].albedo;
+            path.push_back(a > 0.0 ? a * H[b] : 0.0);  // a = 0: the source adds nothing (0 x inf)
+        }
+    }
+    finish_radiance_bound(volume, sky, ground_bound, d, path);  // early termination's bound (march.h)
     report.values()["render"]["termination_bound"] = volume.radiance_bound;
     {
         ScopedTimer t(report, "balance");
         volume = balance_view_volume(std::move(volume), d, *camera);
     }
 
-    // A view-path source (view_source.h) only in mode scattering.
-    ViewRaySource* source = scene.render.mode == RenderMode::scattering ? in.view_source : nullptr;
     if (source) {
         ScopedTimer t(report, "source_prepare");
         source->prepare(volume.owned, d);

@@ -19,6 +19,8 @@
 // spacing call on steps that the floor already rules out.
 #pragma once
 
+#include <limits>
+
 #include "src/core/box.h"
 #include "src/core/decomposition.h"
 #include "src/core/vec3.h"
@@ -40,6 +42,12 @@ public:
     // toward the camera). Pure; no MPI, no allocation.
     virtual void sample(const Vec3& x, const Vec3& w_out, double tau_view, double s_view,
                         double* H) const = 0;
+    // An upper bound of |H_b| over every sample() of this render, per band (nbands values), for
+    // the ray caster's early termination (march.h); the same on every rank. +inf (the default:
+    // no bound known) lets no ray stop before its transmittance underflows to 0.
+    virtual void radiance_bound(int nbands, double* H) const {
+        for (int b = 0; b < nbands; ++b) H[b] = std::numeric_limits<double>::infinity();
+    }
 };
 
 }  // namespace nimbus

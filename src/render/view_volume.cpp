@@ -190,15 +190,16 @@ ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, con
     return v;
 }
 
-void finish_radiance_bound(ViewVolume& v, const std::vector<double>& sky,
-                           const std::vector<double>& ground_bound, const Decomposition& d) {
+void finish_radiance_bound(ViewVolume& v, const std::vector<double>& sky, const std::vector<double>& ground_bound,
+                           const Decomposition& d, const std::vector<double>& path) {
     const int nb = v.nbands;
     MPI_Allreduce(MPI_IN_PLACE, v.radiance_bound.data(), nb + 1, MPI_DOUBLE, MPI_MAX, d.comm());
-    const double k = v.radiance_bound.back() > 0 ? 4.0 : 2.0;
+    const double k = (v.radiance_bound.back() > 0 ? 4.0 : 2.0) + (path.empty() ? 0.0 : 1.0);
     v.radiance_bound.pop_back();
     for (int b = 0; b < nb; ++b) {
         const auto bb = static_cast<size_t>(b);
-        v.radiance_bound[bb] = k * std::max({v.radiance_bound[bb], std::abs(sky[bb]), ground_bound[bb]});
+        const double cells = v.radiance_bound[bb] + (path.empty() ? 0.0 : path[bb]);
+        v.radiance_bound[bb] = k * std::max({cells, std::abs(sky[bb]), ground_bound[bb]});
     }
 }
 

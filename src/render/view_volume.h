@@ -49,10 +49,11 @@ struct ViewVolume {
 ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, const Vec3& camera);
 
 // Collective over d.comm(). March.h's B_b from build_view_volume's per-rank values:
-// S_b = the largest over the ranks, the sky's radiance sky[b] and ground_bound[b];
-// B_b = 2 S_b, or 4 S_b when some rank has J < 0.
-void finish_radiance_bound(ViewVolume& v, const std::vector<double>& sky,
-                           const std::vector<double>& ground_bound, const Decomposition& d);
+// S_b = the largest of (the ranks' largest cell term + path[b]), the sky's radiance sky[b] and
+// ground_bound[b]; B_b = 2 S_b, or 4 S_b when some rank has J < 0, plus S_b with a view-path
+// source (march_source.h). path: a_b H_max,b of the view-path source, empty without one.
+void finish_radiance_bound(ViewVolume& v, const std::vector<double>& sky, const std::vector<double>& ground_bound,
+                           const Decomposition& d, const std::vector<double>& path = {});
 
 // (Re)computes v.nblocks, v.occupied and v.occupied_cells from v.owned and v.data (owned box
 // and its ghost layer filled). Not collective.

@@ -18,6 +18,7 @@
 #include "io/scene/density_import.h"
 #include "solvers/light/sun_transmittance.h"
 #include "solvers/psf/psf.h"
+#include "solvers/psf/psf_source.h"
 #include "src/core/halo.h"
 #include "src/physics/lights.h"
 #include "src/render/raycaster.h"
@@ -50,6 +51,8 @@ Scene base_scene() {
     return s;
 }
 
+Scene cloud_scene();  // a procedural cumulus under sun and sky (below)
+
 World make_world(MPI_Comm comm, const Scene& s) {
     World w;
     w.d = std::make_unique<Decomposition>(comm, s.grid.n);
@@ -80,11 +83,26 @@ public:
     }
 };
 
-Image render_with(const Scene& s, World& w, ViewRaySource* src) {
+// H = 1 on the medium, 10^7 in a hidden core (the cube test of tests/unit/render's early
+// termination, as a view-path source): bounded by 10^7.
+class HiddenCoreSource final : public ViewRaySource {
+public:
+    void prepare(const Box&, const Decomposition&) override {}
+    double spacing(const Vec3&, double, double) const override { return 0.0; }  // every step
+    void sample(const Vec3& x, const Vec3&, double, double, double* H) const override {
+        const bool core = x.x > 2.4 && x.x < 3.6 && x.y > 2.4 && x.y < 3.6 && x.z > 3.4 && x.z < 4.6;
+        H[0] = core ? 1e7 : 1.0;
+    }
+    void radiance_bound(int, double* H) const override { H[0] = 1e7; }
+};
+
+Image render_with(const Scene& s, World& w, ViewRaySource* src, Report* out_report = nullptr) {
     Report report;
     RenderInputs in{s, w.medium, w.light, w.none};
     in.view_source = src;
-    return render_image(in, *w.d, report);
+    Image image = render_image(in, *w.d, report);
+    if (out_report) *out_report = report;
+    return image;
 }
 
 double max_rel_diff(const Image& a, const Image& b, double& peak) {
@@ -130,6 +148,90 @@ TEST(PsfRenderHook, DepthSourceImageIndependentOfRanks) {
     std::printf("  depth source: max |world - self| / peak = %.3g (peak %.4g)\n", diff, peak);
     EXPECT_GT(peak, 0.5);
     EXPECT_LE(diff, 1e-5);
+}
+
+// Early termination with a view-path source keeps march.h's per-pixel bound: a dense box
+// (1.2 optical depths per cell) whose core's source is 10^7 times the rest, 11.5-17 optical
+// depths behind its faces (the old rule, T < eps alone, moved pixels over the core by 9%, 1 and
+// 2 ranks alike). Against early_termination = 0 every pixel moves by at most eps (+ the
+// float32 floor), on the world communicator (2 and 3 ranks: pieces, carried H) and alone.
+// B = (2 + 1) S with S = a H_max = 0.9e7 (march_source.h).
+TEST(PsfRenderHook, EarlyTerminationBoundsEachPixelWithAViewPathSource) {
+    Scene s = base_scene();
+    s.medium.kind = MediumSpec::Kind::box;
+    s.medium.box_lo = {0.0, 0.0, 0.0};
+    s.medium.box_hi = {1.0, 1.0, 1.0};
+    s.bands = {BandOptics{"gray", 4.8, 0.9, 0.0}};  // 1.2 optical depths per 0.25 m cell
+    s.camera.position = {0.5, -1.0, 0.5};  // domain fractions: the core is 9.6 cells (11.5 optical
+    s.camera.look_at = {0.5, 0.5, 0.5};     // depths) behind the front face
+    s.camera.fov_deg = 30;
+    constexpr double eps = 1e-6, kFloat32Floor = 3e-7;
+    HiddenCoreSource src;
+    auto render = [&](MPI_Comm comm, double e, Report* r) {
+        Scene sc = s;
+        sc.render.early_termination = e;
+        World w = make_world(comm, sc);
+        return render_with(sc, w, &src, r);
+    };
+    Report cut_report, exact_report;
+    const Image exact = render(MPI_COMM_SELF, 0.0, &exact_report);
+    const Image world = render(MPI_COMM_WORLD, eps, &cut_report);
+    const Image self = render(MPI_COMM_SELF, eps, nullptr);
+    if (rank() != 0) return;
+    double worst_world = 0.0, worst_self = 0.0;
+    int lit = 0;
+    for (int y = 0; y < exact.height; ++y)
+        for (int x = 0; x < exact.width; ++x) {
+            const double want = exact.pixel(x, y)[0];
+            if (!(want > 0)) continue;
+            lit += want > 10.0;  // the core shows through (elsewhere H a alpha <= 0.9)
+            worst_world = std::max(worst_world, std::abs(world.pixel(x, y)[0] - want) / want);
+            worst_self = std::max(worst_self, std::abs(self.pixel(x, y)[0] - want) / want);
+        }
+    const long cut = cut_report.values()["render"]["samples"].get<long>();
+    const long all = exact_report.values()["render"]["samples"].get<long>();
+    std::printf("  view-path source, early termination: max relative change %.3g (world), %.3g (self); "
+                "%d pixels see the core; samples %ld of %ld\n",
+                worst_world, worst_self, lit, cut, all);
+    EXPECT_GT(lit, 20);
+    EXPECT_LE(worst_world, eps + kFloat32Floor);
+    EXPECT_LE(worst_self, eps + kFloat32Floor);
+    EXPECT_LT(cut, all);  // the cut still saves steps
+    EXPECT_NEAR(cut_report.values()["render"]["termination_bound"][0].get<double>(), 3 * 0.9e7, 1e-3);
+}
+
+// sample() never exceeds radiance_bound() (the psf model's source on the cloud, sun + sky):
+// at every cell centre of the rank and 26 view directions, for view depths 0 .. 40.
+TEST(PsfModel, SamplesStayWithinTheRadianceBound) {
+    Scene s = cloud_scene();
+    World w = make_world(MPI_COMM_WORLD, s);
+    Report report;
+    w.light = compute_light_transport(*w.d, w.medium, make_lights(s), report, {}, s.light.method);
+    const SolveContext ctx{s, *w.d, w.medium, w.light, report};
+    psf::PsfSource src(ctx, PsfOptions{});
+    src.prepare(w.d->local(), *w.d);
+    double bound[3];
+    src.radiance_bound(3, bound);
+    double worst = 0.0;  // largest H_b / bound_b
+    for_each_cell(w.d->local(), [&](int i, int j, int k) {
+        if (!(w.medium.rho(i, j, k) > 0)) return;
+        const Vec3 x = w.medium.grid.center(i, j, k);
+        for (int dx = -1; dx <= 1; ++dx)
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dz = -1; dz <= 1; ++dz) {
+                    if (dx == 0 && dy == 0 && dz == 0) continue;
+                    const Vec3 w_out = normalized(Vec3{double(dx), double(dy), double(dz)});
+                    for (double tau : {0.0, 0.3, 4.0, 40.0}) {
+                        double H[3];
+                        src.sample(x, w_out, tau, 0.25 * tau, H);
+                        for (int b = 0; b < 3; ++b) worst = std::max(worst, H[b] / bound[b]);
+                    }
+                }
+    });
+    MPI_Allreduce(MPI_IN_PLACE, &worst, 1, MPI_DOUBLE, MPI_MAX, w.d->comm());
+    if (rank() == 0) std::printf("  psf source: max H / bound = %.3g\n", worst);
+    EXPECT_LE(worst, 1.0);
+    EXPECT_GT(worst, 1e-3);  // a bound, not an absurdly loose one
 }
 
 Scene cloud_scene() {
