@@ -78,7 +78,8 @@ const std::vector<KeyDoc>& scene_key_docs() {
         {"sky",
          "A uniform sky over the upper hemisphere, as collimated beams from equal solid angles."},
         {"sky.radiance", "W/(m² sr), per band; [] or 0 in every band = no sky"},
-        {"sky.directions", "number of sky beams (direction bins), 1..4096"},
+        {"sky.directions", "number of sky beams (equal-solid-angle bins), 1..4096; a multiple of 4 "
+                           "is symmetric (rings of 4), others a spiral"},
 
         {"sources",
          "Any number: an axis-aligned box of isotropic volume emission; models dom, diffusion, "

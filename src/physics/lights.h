@@ -1,7 +1,8 @@
 // Directional light terms: the sun and the uniform sky, each a collimated beam of irradiance
 // E0 (per band, W/m² on a plane normal to w) travelling along unit w (DESIGN §1). The sky
-// is discretized into direction bins over the upper hemisphere; a bin of solid angle Ω and
-// radiance L becomes a beam of irradiance L Ω along its central direction.
+// is discretized into direction bins of equal solid angle over the upper hemisphere (rings of
+// 4 symmetric bins when 4 divides their count, else a spiral: lights.cpp); a bin of solid angle
+// Ω and radiance L becomes a beam of irradiance L Ω along its central direction.
 #pragma once
 
 #include <string>
