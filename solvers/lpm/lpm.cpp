@@ -118,13 +118,7 @@ public:
 
 private:
     static void check_decomposition(const Decomposition& d) {
-        if (!d.is_slab_z())
-            throw Error(fmt::format("model lpm needs slabs along z (grid.process_grid = [1, 1, P]): its z maps are "
-                                    "pipelined down the slab chain; got {}",
-                                    d.describe()));
-        if (d.periodic(2))
-            throw Error("model lpm: grid.periodic z is not supported (its z maps run down the slab chain); use "
-                        "periodic x/y only");
+        d.require_z_slabs("model lpm", "its z maps are pipelined down the slab chain");
     }
 
     LpmOptions opt_;

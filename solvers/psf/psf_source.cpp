@@ -39,13 +39,7 @@ void level_pair(const LightPyramid& p, double w, int& k0, int& k1, double& f) {
 }  // namespace
 
 void check_decomposition(const Decomposition& d) {
-    if (!d.is_slab_z())
-        throw Error(fmt::format("model psf needs slabs along z (grid.process_grid = [1, 1, P]): its light "
-                                "pyramid and path-length pass work on z slabs; got {}",
-                                d.describe()));
-    if (d.periodic(2))
-        throw Error("model psf: grid.periodic z is not supported (its light pyramid is split into z slabs); use "
-                    "periodic x/y only");
+    d.require_z_slabs("model psf", "its light pyramid and path-length pass work on z slabs");
     if (d.dims()[2] > 1 && d.thinnest(2) < kLevel0Ghost)
         throw Error(fmt::format("model psf needs at least {} z layers per rank (its light volume has {} ghost "
                                 "layers): {} layers on {} ranks leave {}; use at most {} rank{}",

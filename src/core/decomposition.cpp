@@ -138,4 +138,12 @@ std::string Decomposition::describe() const {
                        dims_[2], is_slab_z() ? " (slabs along z)" : "");
 }
 
+void Decomposition::require_z_slabs(const std::string& who, const std::string& why) const {
+    if (!is_slab_z())
+        throw Error(fmt::format("{} needs slabs along z (grid.process_grid = [1, 1, P]): {}; got {}", who, why,
+                                describe()));
+    if (periodic(2))
+        throw Error(fmt::format("{}: grid.periodic z is not supported ({}); use periodic x/y only", who, why));
+}
+
 }  // namespace nimbus

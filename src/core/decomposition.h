@@ -37,6 +37,9 @@ public:
     const Int3& coords() const { return coords_; }
     bool periodic(int axis) const { return periodic_[axis]; }
     bool is_slab_z() const { return dims_[0] == 1 && dims_[1] == 1; }
+    // For a method that works on the z slabs: throws Error (the same on every rank) unless the
+    // grid is split along z only and z is not periodic. who: "model lpm"; why: what needs it.
+    void require_z_slabs(const std::string& who, const std::string& why) const;
 
     // Rank of the neighbour one step along `axis` in direction dir (+1/-1); MPI_PROC_NULL at a
     // non-periodic domain boundary.
