@@ -241,6 +241,8 @@ void check_finite_image(const Image& image, MPI_Comm comm) {
                                 bad));
 }
 
+namespace {
+
 // The medium kinds a medium.<key> applies to (io/scene/key_docs.cpp); empty: every kind.
 std::vector<std::string> medium_key_kinds(const std::string& key) {
     if (key.rfind("noise_", 0) == 0 || key == "seed" || key.rfind("ellipsoid", 0) == 0) return {"cumulus"};
@@ -250,6 +252,8 @@ std::vector<std::string> medium_key_kinds(const std::string& key) {
     if (key == "dataset") return {"hdf5"};
     return {};
 }
+
+}  // namespace
 
 Scene load_run_scene(MPI_Comm comm, const RunOptions& opts) {
     Scene scene;
