@@ -49,6 +49,14 @@ test::DomWorld cloud(MPI_Comm comm) {
     return w;
 }
 
+// The angular set of the tests that drive the iteration directly: S4, Legendre order 3.
+dom::AngularSet s4_l3() {
+    DomOptions o;
+    o.order = 4;
+    o.legendre_order = 3;
+    return dom::make_angular_set(o);
+}
+
 TEST(DomIteration, OneAndTwoRanksAgreeToTheTolerance) {
     for (const char* method : {"dsa", "gmres"}) {
         DomOptions o;
@@ -287,10 +295,7 @@ TEST(DomIteration, NegativeFluenceIsReported) {
 TEST(DomIteration, MonitorSeesEveryIteration) {
     for (const char* method : {"dsa", "gmres"}) {
         test::DomWorld w = cloud(MPI_COMM_WORLD);
-        DomOptions o;
-        o.order = 4;
-        o.legendre_order = 3;
-        const dom::AngularSet ang = dom::make_angular_set(o);
+        const dom::AngularSet ang = s4_l3();
         dom::BandProblem p = dom::make_band_optics(w.m, 0, w.d.local(), ang, true);
         dom::add_light_sources(p, w.d, w.m, w.light, 0, ang);
         dom::TransportSweeper sweeper(w.d, ang, w.m.grid.h, {}, 1e-7);
@@ -346,10 +351,7 @@ namespace {
 // additive: its Krylov polynomial depends on the right-hand side (it failed this test at 1e-3).
 TEST(DomDsa, CorrectionIsALinearMapOfTheChanges) {
     test::DomWorld w = cloud(MPI_COMM_WORLD);
-    DomOptions o;
-    o.order = 4;
-    o.legendre_order = 3;
-    const dom::AngularSet ang = dom::make_angular_set(o);
+    const dom::AngularSet ang = s4_l3();
     dom::BandProblem p = dom::make_band_optics(w.m, 0, w.d.local(), ang, true);
     dom::DiffusionSynthetic dsa(w.d, p);
     const Box& own = w.d.local();
