@@ -50,23 +50,51 @@ void blur_axis(Field<double>& f, const Int3& n, int axis, const std::vector<doub
     });
 }
 
-// Mean of the fine cells (inside the fine domain nf) of each coarse owned cell of `coarse`.
-void downsample(const Field<double>& fine, const Int3& nf, Field<double>& coarse) {
+// Along one axis, the fine cells under coarse cell j and their weights |coarse ∩ fine ∩ domain|,
+// normalized to sum 1 (pyramid.h, Centring). In fine cells from the fine level's first corner:
+// the domain is [d_lo, d_lo + length/hf), coarse cell j is [c0 + 2j, c0 + 2j + 2).
+struct AxisTaps {
+    int first = 0, count = 0;
+    double w[3] = {0.0, 0.0, 0.0};
+};
+
+std::vector<AxisTaps> axis_taps(int nf, double hf, double offset_f, int nc, double offset_c, double length) {
+    const double d_lo = -offset_f / hf, d_hi = d_lo + length / hf, c0 = (offset_c - offset_f) / hf;
+    std::vector<AxisTaps> taps(static_cast<size_t>(nc));
+    for (int j = 0; j < nc; ++j) {
+        const double lo = c0 + 2.0 * j, hi = lo + 2.0;
+        AxisTaps& t = taps[static_cast<size_t>(j)];
+        t.first = std::max(0, static_cast<int>(std::floor(lo)));
+        double sum = 0.0;
+        for (int i = t.first; i < std::min(nf, static_cast<int>(std::ceil(hi))) && t.count < 3; ++i) {
+            const double w = std::max(0.0, std::min({hi, i + 1.0, d_hi}) - std::max({lo, static_cast<double>(i), d_lo}));
+            t.w[t.count++] = w;
+            sum += w;
+        }
+        if (!(sum > 0.0)) throw Error("psf pyramid: a coarse cell lies outside the domain");
+        for (double& w : t.w) w /= sum;
+    }
+    return taps;
+}
+
+// Each coarse owned cell of `coarse`: the weighted mean of the fine cells under it (taps per axis).
+void downsample(const Field<double>& fine, const std::array<std::vector<AxisTaps>, 3>& taps, Field<double>& coarse) {
     const int nc = fine.ncomp();
     const Box& fa = fine.allocated();
     for_each_cell(coarse.owned(), [&](int i, int j, int k) {
+        const AxisTaps &tx = taps[0][static_cast<size_t>(i)], &ty = taps[1][static_cast<size_t>(j)],
+                       &tz = taps[2][static_cast<size_t>(k)];
         double* q = &coarse(i, j, k);
         for (int c = 0; c < nc; ++c) q[c] = 0.0;
-        int count = 0;
-        for (int z = 2 * k; z < std::min(2 * k + 2, nf[2]); ++z)
-            for (int y = 2 * j; y < std::min(2 * j + 2, nf[1]); ++y)
-                for (int x = 2 * i; x < std::min(2 * i + 2, nf[0]); ++x) {
+        for (int c2 = 0; c2 < tz.count; ++c2)
+            for (int b = 0; b < ty.count; ++b)
+                for (int a = 0; a < tx.count; ++a) {
+                    const int x = tx.first + a, y = ty.first + b, z = tz.first + c2;
                     if (!fa.contains(x, y, z)) throw Error("psf pyramid: fine level does not cover its coarse cells");
+                    const double w = tx.w[a] * ty.w[b] * tz.w[c2];
                     const double* p = &fine(x, y, z);
-                    for (int c = 0; c < nc; ++c) q[c] += p[c];
-                    ++count;
+                    for (int c = 0; c < nc; ++c) q[c] += w * p[c];
                 }
-        for (int c = 0; c < nc; ++c) q[c] /= count;
     });
 }
 
@@ -128,17 +156,26 @@ LightPyramid::LightPyramid(Field<double> level0, const Grid& g, const Decomposit
         PyramidLevel lv;
         lv.k = k;
         lv.periodic = periodic;
-        for (int a = 0; a < 3; ++a) lv.n[a] = (pl.n[a] + 1) / 2;
         lv.h = 2.0 * pl.h;
-        const double var = lv.h * lv.h - pl.width * pl.width - lv.h * lv.h / 16.0;  // (sigma h)²
-        lv.sigma = std::sqrt(var) / lv.h;
         lv.width = lv.h;
-        lv.radius = static_cast<int>(std::ceil(4.0 * lv.sigma));
-        const int ghost = std::max(lv.radius, 3);
+        std::array<std::vector<AxisTaps>, 3> taps;
+        std::array<std::vector<double>, 3> kern;
+        int ghost = 3;
+        for (int a = 0; a < 3; ++a) {
+            const double length = g.n[a] * g.h;
+            lv.n[a] = (pl.n[a] + 1) / 2;
+            const bool centred = !periodic[a] && pl.n[a] % 2 == 1;
+            lv.offset[a] = periodic[a] ? 0.0 : 0.5 * (length - lv.n[a] * lv.h);
+            taps[a] = axis_taps(pl.n[a], pl.h, pl.offset[a], lv.n[a], lv.offset[a], periodic[a] ? pl.n[a] * pl.h : length);
+            const double resample = centred ? 1.0 / 8.0 : 1.0 / 16.0;  // variance / h_k²
+            lv.sigma[a] = std::sqrt(1.0 - pl.width * pl.width / (lv.h * lv.h) - resample);
+            lv.radius[a] = static_cast<int>(std::ceil(4.0 * lv.sigma[a]));
+            kern[a] = gaussian_kernel(lv.sigma[a], lv.radius[a]);
+            ghost = std::max(ghost, lv.radius[a]);
+        }
         bool distributed = !prev_replicated;
         for (int p = 0; p < P && distributed; ++p)
             distributed = Decomposition::split_lo(lv.n[2], P, p + 1) - Decomposition::split_lo(lv.n[2], P, p) >= ghost + 1;
-        const std::vector<double> kern = gaussian_kernel(lv.sigma, lv.radius);
         Field<double> cur;
         if (distributed) {
             const Decomposition dk(comm, lv.n);
@@ -146,15 +183,15 @@ LightPyramid::LightPyramid(Field<double> level0, const Grid& g, const Decomposit
             cur = Field<double>(dk.local(), ghost, ncomp_, 0.0);
             std::string msg;
             try {
-                downsample(prev, pl.n, cur);
+                downsample(prev, taps, cur);
             } catch (const Error& e) {
                 msg = e.what();
             }
             check_collective(comm, msg.empty(), msg);
-            blur_axis(cur, lv.n, 0, kern, lv.radius, periodic[0]);
-            blur_axis(cur, lv.n, 1, kern, lv.radius, periodic[1]);
+            blur_axis(cur, lv.n, 0, kern[0], lv.radius[0], periodic[0]);
+            blur_axis(cur, lv.n, 1, kern[1], lv.radius[1], periodic[1]);
             exchange_halo(cur, dk);
-            blur_axis(cur, lv.n, 2, kern, lv.radius, false);
+            blur_axis(cur, lv.n, 2, kern[2], lv.radius[2], false);
             exchange_halo(cur, dk);
         } else {
             if (!prev_replicated) {
@@ -163,8 +200,8 @@ LightPyramid::LightPyramid(Field<double> level0, const Grid& g, const Decomposit
             }
             lv.replicated = true;
             cur = Field<double>(Box{{0, 0, 0}, lv.n}, 0, ncomp_, 0.0);
-            downsample(prev, pl.n, cur);
-            for (int a = 0; a < 3; ++a) blur_axis(cur, lv.n, a, kern, lv.radius, periodic[a]);
+            downsample(prev, taps, cur);
+            for (int a = 0; a < 3; ++a) blur_axis(cur, lv.n, a, kern[a], lv.radius[a], periodic[a]);
         }
         lv.values = to_float(cur);
         levels_.push_back(std::move(lv));
@@ -218,7 +255,7 @@ void sample_level(const Field<float>& f, const PyramidLevel& level, const Vec3& 
     double fr[3];
     const Box& a = f.allocated();
     for (int ax = 0; ax < 3; ++ax) {
-        const double q = (x[ax] - origin[ax]) / level.h - 0.5;
+        const double q = (x[ax] - origin[ax] - level.offset[ax]) / level.h - 0.5;
         const double fl = std::floor(q);
         fr[ax] = q - fl;
         if (level.periodic[ax]) {  // the neighbour across the seam
