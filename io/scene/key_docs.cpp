@@ -207,7 +207,8 @@ const std::vector<KeyDoc>& scene_key_docs() {
         {"model.lpm.iterations", "map sweeps (all six maps) at most, >= 1"},
         {"model.lpm.epsilon", "stop once max U < epsilon × peak first-scatter source, in [0, 1)"},
         {"model.lpm.tail",
-         "the light left in U at the stop: none | geometric | diffusion (one P1 solve)"},
+         "the light left in U at the stop: none | geometric | diffusion (one P1 solve) | dsa (a P1 "
+         "correction fed back after every round, then the P1 tail)"},
 
         {"model.psf", "Path-integral point-spread function, Premoze 2004 (solvers/psf/README.md)."},
         {"model.psf.levels",

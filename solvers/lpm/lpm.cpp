@@ -56,7 +56,7 @@ public:
         // geometric tail, a ratio of the last two iterations, is not linear: it solves per band.
         // Two solves also differ from one where the epsilon stop ends them at different
         // iterations (each is then within its own epsilon) or the diffusion tail clamps a negative
-        // U (a few lit surface cells at most).
+        // U (a few lit surface cells at most; tail "diffusion" only: DSA's solves are not clamped).
         const std::vector<BandGroup> groups =
             group_bands(m.bands, term_strengths(ctx.light.lights, sources, nb), opt_.tail != "geometric");
         int nsolves = 0;
@@ -91,7 +91,9 @@ public:
                                   {"unpropagated_W_per_iteration", r.remaining_history},
                                   {"tail", opt_.tail},
                                   {"tail_geometric_factor", r.tail_factor},
-                                  {"tail_diffusion_solver_iterations", r.tail_solver_iterations}});
+                                  {"tail_diffusion_solver_iterations", r.tail_solver_iterations},
+                                  {"dsa_corrections", r.dsa_corrections},
+                                  {"dsa_solver_iterations", r.dsa_solver_iterations}});
                 if (d.rank() == 0)
                     log::info("lpm {} {}: {} iterations, max U {:.3g} of the first-scatter maximum, {:.3g} s per map "
                               "sweep, unpropagated {:.3g} of the scattered power",

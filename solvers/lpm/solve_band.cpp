@@ -3,6 +3,7 @@
 #include <mpi.h>
 
 #include <algorithm>
+#include <cmath>
 #include <numbers>
 
 #include "solvers/lpm/map_sweep.h"
@@ -21,6 +22,23 @@ double global_sum(double v, MPI_Comm c) {
 double global_max(double v, MPI_Comm c) {
     MPI_Allreduce(MPI_IN_PLACE, &v, 1, MPI_DOUBLE, MPI_MAX, c);
     return v;
+}
+
+// U^m += sign κ a (φ + 3 g F·ω̄^m)/(4π) on the owned cells: the HG scattering of the P1
+// radiance (φ + 3 F·ω)/(4π) of correction t, averaged over coarse bin m (mean direction ω̄^m);
+// g = 0 scatters its isotropic part alone.
+void add_p1_scattering(Field<double>& U, double sign, const DiffusionTail& t, const Field<double>& kappa,
+                       double albedo, double g, const std::vector<Vec3>& mean) {
+    const int nm = U.ncomp();
+    const double c = sign * albedo / (4.0 * std::numbers::pi);
+    for_each_cell(U.owned(), [&](int i, int j, int k) {
+        const double s = c * kappa(i, j, k);
+        if (s == 0.0) return;
+        const double phi = t.fluence(i, j, k);
+        const Vec3 F{t.flux(i, j, k, 0), t.flux(i, j, k, 1), t.flux(i, j, k, 2)};
+        double* u = &U(i, j, k);
+        for (int m = 0; m < nm; ++m) u[m] += s * (phi + 3.0 * g * dot(F, mean[static_cast<size_t>(m)]));
+    });
 }
 
 }  // namespace
@@ -98,6 +116,16 @@ BandResult solve_sources(const Decomposition& d, const Medium& m, const LightTra
     acc.flux = in.flux ? &flux : nullptr;
 
     const bool geometric = opt.tail == "geometric";
+    // Diffusion synthetic acceleration (tail "dsa", solve_band.h): the P1 correction of the last
+    // round, fed back into U as its scattering S(f) (with the current for the first correction,
+    // isotropic after: g_f).
+    const bool dsa = opt.tail == "dsa";
+    const std::vector<Vec3> mean = dsa ? coarse_mean_directions(ang) : std::vector<Vec3>{};
+    DiffusionTail correction;
+    double correction_g = 0.0;
+    bool corrected = false;
+    Report scratch_report;
+    Report& solver_report = report ? *report : scratch_report;
     Field<double> previous;  // fluence before the last iteration (geometric tail)
     double previous_remaining = r.source;
     for (int it = 0; it < opt.iterations && u_max0 > 0.0; ++it) {
@@ -110,10 +138,21 @@ BandResult solve_sources(const Decomposition& d, const Medium& m, const LightTra
             if (progress) progress->update(progress_offset + static_cast<double>(r.sweep_seconds.size()));
         }
         ++r.iterations;
+        if (dsa && r.iterations < opt.iterations) {
+            // U = S(δ_n) + S(f_{n-1}) - S(f_{n-1}): the error's source, whose P1 solution is the
+            // new correction f_n; U += S(f_n) makes the next round propagate it.
+            if (corrected) add_p1_scattering(U, -1.0, correction, kappa, bo.albedo, correction_g, mean);
+            correction_g = corrected ? 0.0 : bo.g;
+            correction = diffusion_tail(d, m, bo, U, kappa, ang, solver_report, !corrected, false);
+            add_p1_scattering(U, 1.0, correction, kappa, bo.albedo, correction_g, mean);
+            corrected = true;
+            ++r.dsa_corrections;
+            r.dsa_solver_iterations += correction.solver_iterations;
+        }
         double u_max = 0.0, left = 0.0;
         for_each_cell(own, [&](int i, int j, int k) {
             for (int c = 0; c < nm; ++c) {
-                u_max = std::max(u_max, U(i, j, k, c));
+                u_max = std::max(u_max, std::abs(U(i, j, k, c)));  // DSA leaves U of either sign
                 left += V * ang.coarse_solid_angle(c) * U(i, j, k, c);
             }
         });
@@ -124,6 +163,10 @@ BandResult solve_sources(const Decomposition& d, const Medium& m, const LightTra
         if (r.max_U.back() < opt.epsilon) break;
     }
 
+    // The last correction is not propagated: U goes back to the error's source, whose P1
+    // solution is the tail below. Every S(f) added is so removed once, and the energy balance
+    // closes as without DSA.
+    if (corrected) add_p1_scattering(U, -1.0, correction, kappa, bo.albedo, correction_g, mean);
     double absorbed = 0.0, remaining = 0.0;
     for_each_cell(own, [&](int i, int j, int k) {
         absorbed += V * (1.0 - bo.albedo) * kappa(i, j, k) * fluence(i, j, k);
@@ -144,9 +187,10 @@ BandResult solve_sources(const Decomposition& d, const Medium& m, const LightTra
         r.tail_factor = geometric_tail_factor(r.remaining, previous_remaining);
         add_geometric_tail(fluence, previous, r.tail_factor);
         // The flux, when asked for, is left without the tail (its increment is not kept).
-    } else if (opt.tail == "diffusion" && r.remaining > 0.0) {
-        Report scratch;
-        DiffusionTail t = diffusion_tail(d, m, bo, U, kappa, ang, report ? *report : scratch);
+    } else if ((opt.tail == "diffusion" && r.remaining > 0.0) || (dsa && !r.max_U.empty() && r.max_U.back() > 0.0)) {
+        // The plain tail's U is non-negative and its P1 fluence clamped at 0 (README); DSA's
+        // source has either sign and is not.
+        DiffusionTail t = diffusion_tail(d, m, bo, U, kappa, ang, solver_report, true, !dsa);
         r.tail_solver_iterations = t.solver_iterations;
         for_each_cell(own, [&](int i, int j, int k) {
             fluence(i, j, k) += t.fluence(i, j, k);

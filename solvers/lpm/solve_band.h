@@ -1,8 +1,24 @@
 // The light propagation maps iteration for one wavelength band (Fattal 2009 §3.4):
 //   U^m   <- first-scatter source: kappa a Σ_l E0_l T_l ∫_{Ω^m} p(ω·w_l) dω / |Ω^m|  (W/(m³ sr))
 //            + the volume sources' isotropic emission power/4π in every bin (emission.h)
-//   repeat until max U < epsilon · max(first-scatter source) or `iterations` rounds:
+//   repeat until max |U| < epsilon · max(first-scatter source) or `iterations` rounds:
 //     for each map -Z, +Z, +X, -X, +Y, -Y: sweep_map (snapshot Ũ, propagate, deposit)
+//     tail "dsa", every round but the last: diffusion synthetic acceleration (below)
+//   then the tail (tail.h) estimates what the light still in U would add.
+//
+// DSA (tail "dsa", the default). The rounds are source iteration on the fluence, phi^{n+1/2} =
+// Prop(Q + S phi^n), written in increments: U holds the scattering of the light propagated last
+// (S = κ a ∫ p(ω'·ω) · dω'). After round n, U - S(f_{n-1}) is the scattering of the iterate's
+// change phi^{n+1/2} - phi^n, and the error's source: its P1 solution f_n (tail.h's solve, not
+// clamped) is the correction, phi^{n+1} = phi^{n+1/2} + f_n, and U += S(f_n) - S(f_{n-1}) feeds it
+// to the next round, where transport corrects P1's error. The first correction carries the
+// current (Q1 and S's 3 g F·ω term: the once-scattered light of a bright forward-scattering cloud
+// is far from isotropic); later ones are isotropic, as in plain DSA: with the current, an error's
+// short transverse waves grow by up to g a/(1 - a g) per round (5.6 at g 0.85, a 0.999; DOM
+// filters it, solvers/dom/dsa.h) and the iteration diverged on the default cloud by round 4. At
+// the stop the last S(f) is taken out again and the diffusion tail solves for what is left, so
+// the fields equal phi^{n+1/2} + P1(the error's source) and every S(f) added is removed once (the
+// energy bookkeeping below closes unchanged). The fixed point is LPM's converged answer.
 // The reduced sun E0 T is not propagated (it is fluence_reduced); only light scattered at
 // least once is, so fluence = ∫ I_d dω (DESIGN §1); emitted light is diffuse light from the
 // start. Collective over d.comm(); slabs along z.
@@ -42,6 +58,8 @@ struct BandResult {
     std::vector<double> remaining_history;  // W unpropagated after each iteration, global
     double tail_factor = 0.0;        // geometric tail: rho/(1-rho) applied to the last increment
     int tail_solver_iterations = 0;  // diffusion tail: linear-solver iterations
+    int dsa_corrections = 0;         // tail "dsa": P1 corrections fed back (one per round but the last)
+    int dsa_solver_iterations = 0;   // their linear-solver iterations, summed
 };
 
 // The map order of one iteration: faces -Z, +Z, +X, -X, +Y, -Y.

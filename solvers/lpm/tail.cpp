@@ -21,14 +21,20 @@ void add_geometric_tail(Field<double>& fluence, const Field<double>& previous, d
     });
 }
 
-DiffusionTail diffusion_tail(const Decomposition& d, const Medium& m, const BandOptics& bo, const Field<double>& U,
-                             const Field<double>& kappa, const Angular& ang, Report& report) {
+std::vector<Vec3> coarse_mean_directions(const Angular& ang) {
     const int nm = ang.coarse_bins();
-    // Coarse-bin mean directions (1/|Ω^m|) ∫_{Ω^m} ω dω from the nested map bins.
     std::vector<Vec3> mean(static_cast<size_t>(nm));
     for (int n = 0; n < ang.map_bins(); ++n)
         mean[static_cast<size_t>(ang.coarse_of(n))] += ang.mean_direction(n) * ang.solid_angle(n);
     for (int c = 0; c < nm; ++c) mean[static_cast<size_t>(c)] = mean[static_cast<size_t>(c)] * (1.0 / ang.coarse_solid_angle(c));
+    return mean;
+}
+
+DiffusionTail diffusion_tail(const Decomposition& d, const Medium& m, const BandOptics& bo, const Field<double>& U,
+                             const Field<double>& kappa, const Angular& ang, Report& report, bool with_current,
+                             bool clamp_negative) {
+    const int nm = ang.coarse_bins();
+    const std::vector<Vec3> mean = coarse_mean_directions(ang);
 
     diffusion::DiffusionProblem p;
     p.h = m.grid.h;
@@ -51,7 +57,8 @@ DiffusionTail diffusion_tail(const Decomposition& d, const Medium& m, const Band
             q1 += mean[static_cast<size_t>(c)] * e;
         }
         Q0(i, j, k) = inv4pi * q0;
-        for (int a = 0; a < 3; ++a) G(i, j, k, a) = inv4pi * q1[a] / p.kappa_tr(i, j, k);
+        if (with_current)
+            for (int a = 0; a < 3; ++a) G(i, j, k, a) = inv4pi * q1[a] / p.kappa_tr(i, j, k);
     });
     exchange_halo(G, d);
     p.Q0.push_back(std::move(Q0));
@@ -59,6 +66,7 @@ DiffusionTail diffusion_tail(const Decomposition& d, const Medium& m, const Band
 
     DiffusionOptions opt;
     opt.delta_scaling = false;  // not used by solve_diffusion; the source above is unscaled
+    opt.clamp_negative = clamp_negative;
     diffusion::DiffusionResult res = diffusion::solve_diffusion(d, p, opt, report);
     DiffusionTail t;
     t.fluence = Field<double>(d.local(), 1, 1, 0.0);

@@ -14,10 +14,13 @@
 // Collective over d.comm().
 #pragma once
 
+#include <vector>
+
 #include "solvers/lpm/angular.h"
 #include "src/core/decomposition.h"
 #include "src/core/field.h"
 #include "src/core/report.h"
+#include "src/core/vec3.h"
 #include "src/scene/medium.h"
 
 namespace nimbus::lpm {
@@ -37,9 +40,15 @@ struct DiffusionTail {
     double true_residual = 0.0;
 };
 
+// Coarse-bin mean directions (1/|Ω^m|) ∫_{Ω^m} ω dω, from the nested map bins.
+std::vector<Vec3> coarse_mean_directions(const Angular& ang);
+
 // Collective. U: owned, coarse bins of ang; kappa: owned + ghost (halo-exchanged), 1/m.
-// Throws Error when nimbus was built without the diffusion model.
+// with_current false: Q1 = 0 (the isotropic part of U alone). clamp_negative: negative P1
+// fluence set to 0 (the tail of a non-negative U; a DSA correction, whose source has either
+// sign, must not be clamped). Throws Error when nimbus was built without the diffusion model.
 DiffusionTail diffusion_tail(const Decomposition& d, const Medium& m, const BandOptics& bo, const Field<double>& U,
-                             const Field<double>& kappa, const Angular& ang, Report& report);
+                             const Field<double>& kappa, const Angular& ang, Report& report, bool with_current = true,
+                             bool clamp_negative = true);
 
 }  // namespace nimbus::lpm

@@ -100,8 +100,8 @@ void LpmOptions::validate() const {
         throw Error("model.lpm.solution_bins must be 1 (fluence) or 4 (fluence and flux)");
     if (iterations < 1) throw Error("model.lpm.iterations must be >= 1");
     if (!(epsilon >= 0 && epsilon < 1)) throw Error("model.lpm.epsilon must be in [0, 1)");
-    if (tail != "none" && tail != "geometric" && tail != "diffusion")
-        throw Error("model.lpm.tail must be none, geometric or diffusion");
+    if (tail != "none" && tail != "geometric" && tail != "diffusion" && tail != "dsa")
+        throw Error("model.lpm.tail must be none, geometric, diffusion or dsa");
 }
 
 void PsfOptions::validate() const {

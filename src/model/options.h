@@ -141,8 +141,8 @@ struct LpmOptions {
     int solution_bins = 1;      // solution moments: 1 = fluence only, 4 = fluence + flux F
     int iterations = 3;         // map sweeps (all six maps) at most
     double epsilon = 1e-3;      // stop when max U < epsilon x max first-scatter source
-    std::string tail = "diffusion";  // light left in U at the stop: none | geometric | diffusion
-                                     // (solvers/lpm/tail.h)
+    std::string tail = "dsa";  // light left in U at the stop: none | geometric | diffusion (solvers/lpm/
+                               // tail.h) | dsa (diffusion fed back every round, solve_band.h)
     void validate() const;
     bool operator==(const LpmOptions&) const = default;
 };

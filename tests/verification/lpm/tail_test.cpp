@@ -1,6 +1,7 @@
 // The tails of solvers/lpm/tail.h: after a few iterations on a thick, bright cube (tau 16
 // across, albedo 0.99, g 0.6; the iteration converges at ~0.9 per round), the fluence with each
-// tail against the same LPM iterated to convergence (max U < 1e-6 of the first-scatter max).
+// tail (and DSA, tail "dsa") against the same LPM iterated to convergence (max U < 1e-6 of the
+// first-scatter max).
 // The converged LPM is the tails' target (same angular discretization), so this isolates what
 // the tail adds. Checked: relative L2 of the fluence; the geometric tail must cut the bare
 // iteration's error to < 60%, the diffusion tail to < 25% and below 15% absolute (bounds set
@@ -39,9 +40,9 @@ TEST(LpmTail, TailsRecoverTheConvergedFluenceOfAThickBrightCube) {
     const lpm::BandResult ref = w.solve(lpm_options(3, 1, 400, 1e-6));
     ASSERT_LT(ref.max_U.back(), 1e-6);
     for (int it : {3, 5}) {
-        double err[3];
-        const char* names[3] = {"none", "geometric", "diffusion"};
-        for (int t = 0; t < 3; ++t) {
+        double err[4];
+        const char* names[4] = {"none", "geometric", "diffusion", "dsa"};
+        for (int t = 0; t < 4; ++t) {
             LpmOptions o = lpm_options(3, 1, it);
             o.tail = names[t];
             const lpm::BandResult r = w.solve(o);
@@ -54,14 +55,44 @@ TEST(LpmTail, TailsRecoverTheConvergedFluenceOfAThickBrightCube) {
         }
         if (test::world_rank() == 0)
             std::printf("    tau-16 cube, a 0.99, g 0.6, %d iterations (converged: %d): fluence rel L2 "
-                        "none %.3f, geometric %.3f, diffusion %.3f\n",
-                        it, ref.iterations, err[0], err[1], err[2]);
+                        "none %.3f, geometric %.3f, diffusion %.3f, dsa %.4f\n",
+                        it, ref.iterations, err[0], err[1], err[2], err[3]);
         // Measured (3 / 5 iterations): none 0.668 / 0.535, geometric 0.341 / 0.233,
         // diffusion 0.121 / 0.100 (the P1 tail's own error: g 0.6 is not isotropic).
         EXPECT_LT(err[1], 0.6 * err[0]);
         EXPECT_LT(err[2], 0.25 * err[0]);
         EXPECT_LT(err[2], err[1]);
         EXPECT_LT(err[2], 0.15);
+        // DSA: transport corrects the P1 corrections round by round (measured: 0.0155 / 0.0020).
+        EXPECT_LT(err[3], 0.2 * err[2]);
+    }
+}
+
+// DSA leaves LPM's fixed point where it was: iterated to convergence with the corrections fed
+// back, the fluence equals the plain iteration's converged fluence (the corrections vanish as the
+// iterate's changes do), in far fewer rounds; and the energy bookkeeping closes after any count
+// (every S(f) put into U is taken out once).
+TEST(LpmTail, DsaConvergesToTheSameFixedPointInFewerRounds) {
+    LpmWorld w(MPI_COMM_SELF, {16, 16, 16}, {false, false, false}, [](int, int, int) { return 1.0; },
+               BandOptics{"gray", 1.0, 0.99, 0.6}, {{"sun", normalized(Vec3{0.3, 0.2, -1.0}), {1.0}}});
+    const lpm::BandResult ref = w.solve(lpm_options(3, 1, 400, 1e-7));
+    ASSERT_LT(ref.max_U.back(), 1e-7);
+    LpmOptions o = lpm_options(3, 1, 400, 1e-7);
+    o.tail = "dsa";
+    const lpm::BandResult r = w.solve(o);
+    ASSERT_LT(r.max_U.back(), 1e-7);
+    const double err = rel_l2(w, r.fluence, ref.fluence);
+    if (test::world_rank() == 0)
+        std::printf("    converged: plain %d rounds, dsa %d rounds (%d corrections); fluence rel L2 %.2e\n",
+                    ref.iterations, r.iterations, r.dsa_corrections, err);
+    EXPECT_LT(err, 1e-5);
+    EXPECT_LT(r.iterations, ref.iterations / 3);
+    EXPECT_EQ(r.dsa_corrections, r.iterations);  // stopped by epsilon: every round corrected (measured: 25 of 160)
+    for (int it : {1, 2, 4}) {
+        LpmOptions oi = lpm_options(3, 1, it);
+        oi.tail = "dsa";
+        const lpm::BandResult ri = w.solve(oi);
+        EXPECT_NEAR(ri.escaped + ri.absorbed + ri.remaining + ri.truncated, ri.source, 1e-11 * ri.source) << it;
     }
 }
 
