@@ -39,6 +39,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <new>
 #include <system_error>
 #include <vector>
 
@@ -199,9 +200,26 @@ void Hdf5Writer::write_field(const std::string& name, const Field<double>& f,
     w.reserve(hsize_t(n[0]) * hsize_t(n[1]) * hsize_t(n[2]) * hsize_t(f.ncomp()) * sizeof(float),
               where);
 
+    // The float copy is the writer's one allocation of the field's size, at the end of a run
+    // when memory is fullest: a rank without the memory says so to all (were it to throw alone,
+    // the others would wait in the next collective and the file's collective close would hang).
     std::vector<float> values;
-    values.reserve(static_cast<size_t>(b.cells() * f.ncomp()));
-    for (double v : f.owned_values()) values.push_back(static_cast<float>(v));
+    bool allocated = true;
+    try {
+        values.resize(static_cast<size_t>(b.cells() * f.ncomp()));
+    } catch (const std::bad_alloc&) {
+        allocated = false;
+    }
+    check_collective(comm, allocated,
+                     where + ": not enough memory on some rank for the field's float copy; use more ranks or a "
+                             "smaller grid");
+    {
+        size_t at = 0;  // owned cells in x-fastest order, components interleaved (Field::owned_values)
+        for (int k = b.lo[2]; k < b.hi[2]; ++k)
+            for (int j = b.lo[1]; j < b.hi[1]; ++j)
+                for (int i = b.lo[0]; i < b.hi[0]; ++i)
+                    for (int c = 0; c < f.ncomp(); ++c) values[at++] = static_cast<float>(f(i, j, k, c));
+    }
     // Nothing non-finite is written: a NaN, an Inf or a value beyond float32's range (a density
     // of 1e300, which a run takes in double) would open in ParaView as a valid field.
     std::int64_t bad = std::count_if(values.begin(), values.end(), [](float v) { return !std::isfinite(v); });

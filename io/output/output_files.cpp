@@ -33,15 +33,15 @@ std::string draw_token() {
 
 }  // namespace
 
-OutputFiles::OutputFiles(MPI_Comm comm) : comm_(comm) {
+OutputFiles::OutputFiles(MPI_Comm comm) : comm_(comm), rank_(rank_of(comm)) {
     char token[32] = {};
-    if (rank_of(comm) == 0) draw_token().copy(token, sizeof(token) - 1);
+    if (rank_ == 0) draw_token().copy(token, sizeof(token) - 1);
     MPI_Bcast(token, sizeof(token), MPI_CHAR, 0, comm);
     token_ = token;
 }
 
 OutputFiles::~OutputFiles() {
-    if (committed_ || rank_of(comm_) != 0) return;
+    if (committed_ || rank_ != 0) return;
     std::error_code ec;
     for (const auto& [tmp, final_path] : files_) fs::remove(tmp, ec);
 }
@@ -49,7 +49,7 @@ OutputFiles::~OutputFiles() {
 std::string OutputFiles::add(const std::string& final_path) {
     files_.emplace_back(final_path + "." + token_ + ".tmp", final_path);
     // A signal does not run the destructor; rank 0 removes the temporaries, as there.
-    if (rank_of(comm_) == 0) interrupt_cleanup::add_file(files_.back().first);
+    if (rank_ == 0) interrupt_cleanup::add_file(files_.back().first);
     return files_.back().first;
 }
 
@@ -68,7 +68,7 @@ void OutputFiles::commit() {
     // the files): without this, rank 0 could rename while another rank still checks them.
     MPI_Barrier(comm_);
     std::string message;
-    if (rank_of(comm_) == 0) {
+    if (rank_ == 0) {
         const interrupt_cleanup::Deferred hold;  // a signal waits until the renames are done
         message = replace_finals();
         if (message.empty()) interrupt_cleanup::clear();  // committed: nothing left to remove

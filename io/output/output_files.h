@@ -22,10 +22,12 @@ namespace nimbus {
 
 class OutputFiles {
 public:
-    // Collective over comm (not owned; it must outlive the set): agrees on the run's token.
+    // Collective over comm (not owned; it must stay valid for the constructor and commit(),
+    // not for the destructor): agrees on the run's token.
     explicit OutputFiles(MPI_Comm comm);
-    // Uncommitted: rank 0 removes every temporary. Not collective; destroy the writers of
-    // the temporaries (Hdf5Writer closes its file collectively) before the set.
+    // Uncommitted: rank 0 removes every temporary. Not collective and no MPI call (a writer
+    // that owns its set frees the communicator first); destroy the writers of the temporaries
+    // (Hdf5Writer closes its file collectively) before the set.
     ~OutputFiles();
     OutputFiles(const OutputFiles&) = delete;
     OutputFiles& operator=(const OutputFiles&) = delete;
@@ -47,6 +49,7 @@ private:
     std::string replace_finals();  // rank 0's part of commit(); the error, or empty
 
     MPI_Comm comm_;
+    int rank_ = 0;  // in comm, kept for the destructor
     std::string token_;
     std::vector<std::pair<std::string, std::string>> files_;  // {temporary, final}
     bool committed_ = false;
