@@ -99,6 +99,11 @@ public:
     double memory_bytes(const Scene&, const Decomposition& d, int nlights) const override {
         const dom::AngularSet ang = dom::make_angular_set(opt_);
         double per_cell = 2.0 * state_bytes_per_cell(ang, nlights);
+        // Every octant in flight beyond the first has its own psi and source (transport_sweep.h;
+        // octant_overlap, default 8): 7 x 2 x 36 values per cell at S16, which the estimate missed
+        // until a QA run peaked at 2.3x it (311 MiB against 134 at 40 x 40 x 32).
+        per_cell += 8.0 * (std::max(1, opt_.octant_overlap) - 1) * ((opt_.scheme == "diamond" ? 4 : 1) + 1) *
+                    ang.max_octant_size;
         if (opt_.iteration == "gmres" || opt_.iteration == "gmres-plain")
             per_cell += 8.0 * ang.nmom * (std::min(opt_.max_iterations, 30) + 1);
         // Periodic x/y: every direction's ghost plane per periodic axis is kept between sweeps.

@@ -170,8 +170,11 @@ StopEta eta_to_stop(const MonteCarloOptions& opt, int done, double trace_seconds
     if (opt.time_budget > 0 && opt.time_budget - elapsed < eta.seconds)
         eta = {std::max(0.0, opt.time_budget - elapsed), "time budget"};
     if (opt.target_rel_error > 0 && rel_error > 0) {
+        // The target is tested from kMinBatchesForTarget batches on (or all, if fewer): no
+        // earlier stop (a QA run said "ETA 0.0 s" for batches 1 to 7).
         const double r = rel_error / opt.target_rel_error;
-        const double left = std::max(0.0, std::ceil(done * r * r) - done) * per_batch;
+        const double needed = std::max(std::ceil(done * r * r), static_cast<double>(std::min(kMinBatchesForTarget, opt.batches)));
+        const double left = std::max(0.0, needed - done) * per_batch;
         if (left < eta.seconds) eta = {left, "target error (estimated from 1/sqrt(batches))"};
     }
     return eta;

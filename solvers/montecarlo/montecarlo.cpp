@@ -97,6 +97,9 @@ public:
     void check(const Scene& s, const Decomposition& d, const Medium&) const override {
         check_layout(d);
         mc::check_kernel(d.comm(), opt_);
+        check_scene(s, d);
+    }
+    void check_scene(const Scene& s, const Decomposition& d) const override {
         mc::check_replicated_memory(d.global().hi, replicated_bytes(s, d), opt_);
     }
     double memory_bytes(const Scene& s, const Decomposition& d, int) const override { return replicated_bytes(s, d); }

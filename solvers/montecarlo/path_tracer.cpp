@@ -76,6 +76,14 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
     const std::array<bool, 3> periodic{d.periodic(0), d.periodic(1), d.periodic(2)};
     const bool ground = scene.background.kind == BackgroundSpec::Kind::ground;
     if (ground && d.rank() == 0) log::warn("montecarlo image: background 'ground' is not modelled, rendered black");
+    // Settings the path tracer does not read are said, as other ignored settings are (QA).
+    if (scene.render.mode != RenderMode::scattering && d.rank() == 0)
+        log::warn("montecarlo image: render.mode = '{}' is not used: the path-traced image is the full scattering "
+                  "solution (set model.montecarlo.image = false for the ray caster's modes)",
+                  to_string(scene.render.mode));
+    if (spp == 1 && d.rank() == 0)
+        log::warn("montecarlo image: samples_per_pixel = 1 gives no standard error: the stderr channels are written "
+                  "as 0; use 2 or more");
 
     const std::vector<double> rho = allgather_global(m.rho, d);
     // Bands with equal optics share their paths (one walk per group, src/scene/optics_groups.h).
@@ -105,26 +113,15 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
             });
     }
 
-    // Per pixel and band: sum and sum of squares of the sample radiance; per pixel: alpha.
+    // Per pixel and band: sum and sum of squares of the sample radiance; per pixel: alpha (mean).
     const std::int64_t pixels = static_cast<std::int64_t>(W) * H, total = pixels * spp;
     std::vector<double> acc(static_cast<size_t>(pixels) * nb * 2 + static_cast<size_t>(pixels), 0.0);
     double* alpha = acc.data() + static_cast<size_t>(pixels) * nb * 2;
     const std::int64_t s0 = total * d.rank() / d.size(), s1 = total * (d.rank() + 1) / d.size();
     Progress progress("montecarlo image", static_cast<double>(s1 - s0), d.rank() == 0);
-    std::int64_t last_pixel = -1;
     for (std::int64_t si = s0; si < s1; ++si) {
         const std::int64_t pix = si / spp;
         const int px = static_cast<int>(pix % W), py = static_cast<int>(pix / W);
-        if (pix != last_pixel && si % spp == 0) {
-            // alpha once per pixel, on the rank that owns its first sample
-            PathState s;
-            const GridView g0 = voxels[0].view(periodic);
-            const double T = enter_domain(m.grid, g0, cam.position(), cam.pixel_direction(px, py), s)
-                                 ? std::exp(-optical_depth(g0, s))
-                                 : 1.0;
-            alpha[pix] = 1.0 - T;
-        }
-        last_pixel = pix;
         for (size_t gi = 0; gi < groups.size(); ++gi) {
             // The group's bands differ only in their light: one path, a radiance per band.
             const std::vector<int>& bands = groups[gi].bands;
@@ -142,6 +139,11 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
             if (!enter_domain(m.grid, g, cam.position(), dir, s)) {
                 background(1.0);
             } else {
+                // alpha = 1 - T over the pixel's samples, as the radiance (its bands' share of
+                // the mean over bands); one ray through the pixel centre, as before, gave an
+                // opaque alpha to a pixel whose samples mostly saw the background (QA).
+                PathState view = s;
+                alpha[pix] += (1.0 - std::exp(-optical_depth(g, view))) * nbg / (static_cast<double>(nb) * spp);
                 double beta = 1.0;
                 bool scattered = false;
                 for (;;) {

@@ -103,6 +103,12 @@ void info(const RunOptions& opts, int plan_ranks) {
         try {
             check_memory_fits(comm, estimate_memory(s, d));
         } catch (const Error&) {
+            // What a run on the plan's ranks refuses without the density is refused here too
+            // (Monte Carlo's replicated grid beyond max_replicated_memory_gb; a QA finding: only
+            // grids small enough to describe were checked).
+            const auto model = make_model(s.model);
+            model->check_layout(*plan);
+            model->check_scene(s, *plan);
             say_grid();
             say_memory();
             say(comm, "medium: not described: its optical depths need the whole density on this one process, "

@@ -42,8 +42,10 @@ void add_run_command(CLI::App& app) {
     run->add_option("--out", opts->out_dir, "output folder (default: the scene's output.dir)")
         ->check([](const std::string& dir) { return dir.empty() ? std::string("the folder name is empty") : std::string(); });
     run->callback([opts] {
-        interrupt_cleanup::install();  // an interrupted run removes its temporaries and new folders
         MPI_Comm comm = MPI_COMM_WORLD;
+        int rank = 0;
+        MPI_Comm_rank(comm, &rank);
+        interrupt_cleanup::install(rank == 0);  // an interrupted run removes its temporaries and new folders
         const Scene scene = load_run_scene(comm, *opts);
         check_memory_fits(comm, estimate_memory(scene, Decomposition(comm, scene.grid.n, scene.grid.process_grid,
                                                                      scene.grid.periodic)));

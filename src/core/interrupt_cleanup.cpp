@@ -29,6 +29,7 @@ std::atomic<int> g_deferring{0}, g_pending{0};
 // sends it to the command and then to its process group; mpiexec passes one on): a second one,
 // landing on another thread while the first cleans up, must not end the process half-way.
 std::atomic<int> g_ending{0};
+std::atomic<int> g_speaks{0};  // this process reports the cleanup on stderr
 static_assert(std::atomic<int>::is_always_lock_free);
 
 bool add(const std::string& path, bool folder) {
@@ -46,10 +47,11 @@ void remove_all() {
         if (!g_entries[i].folder) ::unlink(g_entries[i].path);
     for (int i = n - 1; i >= 0; --i)  // latest (innermost) first; a folder with files stays
         if (g_entries[i].folder) ::rmdir(g_entries[i].path);
-    if (n > 0) {  // the process that registered outputs (rank 0) says what happened
-        static const char kMsg[] = "nimbus: interrupted: removed this run's temporary files and new folders\n";
-        [[maybe_unused]] const ssize_t w = ::write(STDERR_FILENO, kMsg, sizeof kMsg - 1);
-    }
+    if (g_speaks.load(std::memory_order_relaxed) == 0) return;  // rank 0 says what happened
+    static const char kRemoved[] = "nimbus: interrupted: removed this run's temporary files and new folders\n";
+    static const char kNothing[] = "nimbus: interrupted before writing any output: the output folder is as it was\n";
+    [[maybe_unused]] const ssize_t w =
+        n > 0 ? ::write(STDERR_FILENO, kRemoved, sizeof kRemoved - 1) : ::write(STDERR_FILENO, kNothing, sizeof kNothing - 1);
 }
 
 // Cleans up, then ends the process by `sig` (its exit status says which): the default action
@@ -75,7 +77,8 @@ extern "C" void on_signal(int sig) {
 
 }  // namespace
 
-void install() {
+void install(bool speaks) {
+    g_speaks.store(speaks ? 1 : 0, std::memory_order_relaxed);
     for (int sig : kSignals) {
         struct sigaction old {};
         // A signal the process was started with ignored stays ignored (nohup's SIGHUP, the

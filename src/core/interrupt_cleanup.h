@@ -4,7 +4,8 @@
 // cleans up by unwinding (OutputFiles, the pipeline's created folders); a signal does not
 // unwind, so those register their paths here as well.
 //
-//   interrupt_cleanup::install();                 // once, before the run (SIGINT, SIGTERM, SIGHUP)
+//   interrupt_cleanup::install(rank == 0);        // once, before the run (SIGINT, SIGTERM, SIGHUP);
+//                                                 // rank 0 says on stderr what was cleaned up
 //   interrupt_cleanup::add_file("out/a.h5.123.tmp");
 //   interrupt_cleanup::add_folder("out");         // removed only if empty, after the files
 //   interrupt_cleanup::clear();                   // committed: nothing to remove any more
@@ -24,7 +25,7 @@ namespace nimbus::interrupt_cleanup {
 inline constexpr int kMaxPaths = 64;
 inline constexpr int kMaxPathBytes = 4096;
 
-void install();
+void install(bool speaks);
 bool add_file(const std::string& path);
 bool add_folder(const std::string& path);
 void clear();

@@ -91,6 +91,10 @@ public:
     // split over ranks). No communication: `nimbus info --ranks N` calls it on the planned
     // decomposition of N ranks, which has no communicator. check() makes it too.
     virtual void check_layout(const Decomposition& /*d*/) const {}
+    // The part of check() that needs the scene and the decomposition but not the density (limits
+    // set by the grid's size). No communication, like check_layout: `nimbus info --ranks N` makes
+    // it on the plan when the density is too big to build on its one process. check() makes it too.
+    virtual void check_scene(const Scene& /*s*/, const Decomposition& /*d*/) const {}
 };
 
 // Zero-initialized fluence fields for every band on d's local box (+1 ghost).

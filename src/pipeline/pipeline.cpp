@@ -6,6 +6,9 @@
 #include <petscversion.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <csignal>
+#include <cstdlib>
 #include <cmath>
 #include <filesystem>
 #include <vector>
@@ -51,6 +54,24 @@ public:
 private:
     std::vector<fs::path> created_;  // outermost first
 };
+
+// Open MPI's MPI-IO (its shared-file-pointer components, queried by every MPI_File_open)
+// overflows a fixed buffer on file paths of about 245 characters and aborts the run (Debian 12's
+// 4.1; a QA finding: exit 134, created folders left behind). The longest path a run opens is the
+// XDMF or HDF5 temporary, <dir>/<name>.xdmf.<pid>-<8 hex>.tmp: the absolute <dir>/<name> is
+// kept to kMaxOutputStem characters, which leaves that temporary at most 230. Checked before
+// any folder is made; every rank decides alike (the same scene and working directory).
+constexpr size_t kMaxOutputStem = 200;
+
+void check_output_path_length(MPI_Comm comm, const Scene& scene) {
+    std::error_code ec;
+    const std::string stem = (fs::absolute(scene.output.dir, ec) / scene.output.name).lexically_normal().string();
+    check_collective(comm, stem.size() <= kMaxOutputStem,
+                     fmt::format("output path '{}' is {} characters long, more than the {} nimbus allows (Open MPI's "
+                                 "MPI-IO aborts on file paths of about 245): use a shorter output.dir (--out) or "
+                                 "output.name",
+                                 stem, stem.size(), kMaxOutputStem));
+}
 
 // Rank 0 creates the output folder and checks it is writable; every rank fails together. The
 // folders it had to create are added to `created`.
@@ -118,6 +139,28 @@ void warn_of_outputs_left(MPI_Comm comm, const Scene& scene) {
         log::warn("output.hdf5 = false: {} (and its .xdmf) from an earlier run stays beside this run's image", h5);
     if (!scene.output.image && fs::exists(exr, ec))
         log::warn("output.image = false: {} (and its .png) from an earlier run stays beside this run's fields", exr);
+    // Temporaries of a run that was killed (SIGKILL, an out-of-memory kill, MPI_Abort: no cleanup
+    // runs) stay until removed: said, with the process that made them gone (same host).
+    int stale = 0;
+    std::uintmax_t stale_bytes = 0;
+    const std::string prefix = scene.output.name + ".";
+    for (fs::directory_iterator it(scene.output.dir, ec), end; !ec && it != end; it.increment(ec)) {
+        const std::string f = it->path().filename().string();
+        if (f.rfind(prefix, 0) != 0 || f.size() < 4 || f.compare(f.size() - 4, 4, ".tmp") != 0) continue;
+        // <name>.<ext>.<pid>-<8 hex>.tmp (output_files.cpp)
+        const size_t dash = f.rfind('-'), dot = f.rfind('.', dash);
+        if (dash == std::string::npos || dot == std::string::npos) continue;
+        const long pid = std::strtol(f.substr(dot + 1, dash - dot - 1).c_str(), nullptr, 10);
+        if (pid <= 0 || (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM)) continue;
+        ++stale;
+        std::error_code size_ec;
+        stale_bytes += fs::file_size(it->path(), size_ec);
+    }
+    if (stale > 0)
+        log::warn("{} temporary file{} of an earlier, killed run ({}.*.tmp, {:.1f} MB) in {}: its process is gone; "
+                  "remove {}",
+                  stale, stale == 1 ? "" : "s", scene.output.name, static_cast<double>(stale_bytes) / 1e6,
+                  scene.output.dir, stale == 1 ? "it" : "them");
 }
 
 nlohmann::json library_versions() {
@@ -302,6 +345,7 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
     });
     CreatedFolders created;  // removed again unless the outputs are committed
     if (scene.output.hdf5 || scene.output.image) {
+        check_output_path_length(comm, scene);
         prepare_output_dir(comm, scene.output.dir, created);
         check_outputs_spare_input(comm, scene);
         warn_of_outputs_left(comm, scene);

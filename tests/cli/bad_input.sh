@@ -112,6 +112,12 @@ out=$(timeout 120 "$mpiexec" -n "$np" "$nimbus" run "${small[@]}" --set 'medium.
   --set "medium.file=\"$tmp/ow/nimbus.h5\"" --out "$tmp/ow" 2>&1); code=$?
 if [ $code -ne 0 ] && [ $code -ne 124 ] && echo "$out" | grep -q "nimbus: error: output '.*nimbus.h5' would overwrite the density file medium.file" &&
    cmp -s "$tmp/ow/nimbus.h5" "$tmp/ow_copy"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: output over medium.file (exit $code)"; echo "$out" | tail -3; fi
+# An output path Open MPI's MPI-IO would abort on (a buffer overflow at ~245 characters): refused
+# before any folder is made.
+long=$(printf 'd%.0s' $(seq 1 120))
+out=$(timeout 120 "$mpiexec" -n "$np" "$nimbus" run "${small[@]}" --out "$tmp/long/$long/$long" 2>&1); code=$?
+if [ $code -ne 0 ] && [ $code -ne 124 ] && echo "$out" | grep -q "nimbus: error: output path '.*' is [0-9]* characters long, more than the 200" &&
+   [ ! -e "$tmp/long" ]; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: long output path (exit $code)"; echo "$out" | tail -3; fi
 # model psf's light volumes (64 at most): info says it, before any run.
 SUB=info expect_error "model psf: 65 light terms need 65 light volumes, more than the 64 supported; lower sky.directions" \
   "${small[@]}" --set 'model.name="psf"' --set "sky.directions=64"
@@ -134,6 +140,13 @@ SUB=info expect_error 'model dom: grid.periodic axis x must not be split over ra
   --set 'model.name="dom"' --set 'grid.periodic=[true,false,false]' --set "grid.process_grid=[2,1,1]" --set 'light.method="exact"'
 SUB=info expect_error 'light.method = "sweep" sweeps along z and needs slabs along z' "${small[@]}" --ranks 2 \
   --set 'light.method="sweep"' --set "grid.process_grid=[1,2,1]"
+# ... and on a grid too big to describe on this one process, the limits that need no density
+# (Monte Carlo's replicated grid: it used to pass there while smaller grids were refused).
+# (--ranks plans from one process only.)
+if [ "$np" -eq 1 ]; then
+  SUB=info expect_error "Monte Carlo replicates the 2048x2048x1024 grid on every rank" "${small[@]}" --ranks 64 \
+    --set 'model.name="montecarlo"' --set "grid.n=[2048,2048,1024]"
+fi
 # psf needs a light to blur: a clear message, not its internal volume count.
 if "$nimbus" info --set "grid.n=[8,8,8]" 2>&1 | grep -q "models in this build:.*psf"; then
   expect_error "model psf: the scene has no light to blur" "${small[@]}" --set 'model.name="psf"' --set "sun.enabled=false" --set "sky.radiance=[]"

@@ -140,6 +140,10 @@ else
   fail=$((fail + 1)); echo "FAIL: the small runs for compare did not run"
 fi
 
+# A killed run's temporary (its process gone) is said, not left unmentioned.
+mkdir -p "$tmp/stale"; head -c 1000 /dev/zero > "$tmp/stale/nimbus.h5.4194300-0badcafe.tmp"
+check "run: a killed run's temporary is said" 0 "\[warning\] 1 temporary file of an earlier, killed run" \
+  run "${small[@]}" --set 'model.name="single"' --set output.image=false --out "$tmp/stale"
 # A run that shows nothing (no light, or no medium) runs, and says so once.
 check "run: no light warns" 0 "\[warning\] the scene has no light" run "${small[@]}" --set sun.enabled=false --set sky.radiance=0 --set output.image=false --out "$tmp/dark"
 check "run: no medium warns" 0 "\[warning\] the medium has no non-empty cells" run "${small[@]}" --set medium.density=0 --set output.image=false --out "$tmp/empty"
@@ -165,6 +169,17 @@ for sig in INT TERM; do
     fail=$((fail + 1)); echo "FAIL: SIG$sig: folder made $made, ended by the signal $ended, said so $said, exit $code, left behind:"
     find "$tmp/killed_$sig" 2>&1 | head -5; tail -3 "$tmp/killed.log"; fi
 done
+# Interrupted while solving into a folder that exists: nothing to remove, and it says so too
+# (it used to end silently after its last progress line).
+mkdir -p "$tmp/existing_int"
+env --default-signal=INT "$nimbus" run "${small[@]}" --set 'model.name="montecarlo"' \
+    --set model.montecarlo.photons=2000000000 --out "$tmp/existing_int" > "$tmp/int.log" 2>&1 &
+pid=$!
+for _ in $(seq 300); do grep -q "montecarlo" "$tmp/int.log" 2>/dev/null && break; sleep 0.1; done
+sleep 0.5; kill -INT "$pid"; wait "$pid"; code=$?
+if [ "$code" -eq 130 ] && grep -q "nimbus: interrupted before writing any output: the output folder is as it was" "$tmp/int.log" &&
+   [ -z "$(ls -A "$tmp/existing_int")" ]; then pass=$((pass + 1)); else
+  fail=$((fail + 1)); echo "FAIL: interrupted into an existing folder (exit $code):"; tail -3 "$tmp/int.log"; fi
 # A signal the run was started with ignored stays ignored (nohup): the run goes on.
 env --ignore-signal=HUP "$nimbus" run "${small[@]}" --set 'model.name="montecarlo"' \
     --set model.montecarlo.photons=2000000000 --out "$tmp/nohup" > /dev/null 2>&1 &

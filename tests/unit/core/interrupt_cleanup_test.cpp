@@ -55,7 +55,7 @@ TEST(InterruptCleanup, SignalRemovesRegisteredPathsAndEndsByIt) {
         Scratch s("nimbus_interrupt");
         const int status = in_child([&] {
             ::signal(sig, SIG_DFL);
-            interrupt_cleanup::install();
+            interrupt_cleanup::install(true);
             interrupt_cleanup::add_folder((s.dir / "made").string());
             interrupt_cleanup::add_file(s.file.string());
             ::raise(sig);
@@ -84,7 +84,7 @@ TEST(InterruptCleanup, SecondSignalOnAnotherThreadWaitsForTheCleanup) {
         }
         const int status = in_child([&] {
             ::signal(SIGINT, SIG_DFL);
-            interrupt_cleanup::install();
+            interrupt_cleanup::install(true);
             interrupt_cleanup::add_folder((s.dir / "made").string());
             interrupt_cleanup::add_file(s.file.string());
             for (const auto& f : files) interrupt_cleanup::add_file(f.string());
@@ -111,7 +111,7 @@ TEST(InterruptCleanup, ClearedPathsStay) {
     Scratch s("nimbus_interrupt_clear");
     const int status = in_child([&] {
         ::signal(SIGTERM, SIG_DFL);
-        interrupt_cleanup::install();
+        interrupt_cleanup::install(true);
         interrupt_cleanup::add_folder((s.dir / "made").string());
         interrupt_cleanup::add_file(s.file.string());
         interrupt_cleanup::clear();  // committed
@@ -126,7 +126,7 @@ TEST(InterruptCleanup, DeferredHoldsTheSignalUntilItEnds) {
     const fs::path marker = s.dir / "after_raise";
     const int status = in_child([&] {
         ::signal(SIGTERM, SIG_DFL);
-        interrupt_cleanup::install();
+        interrupt_cleanup::install(true);
         interrupt_cleanup::add_file(s.file.string());
         {
             const interrupt_cleanup::Deferred hold;
@@ -146,7 +146,7 @@ TEST(InterruptCleanup, IgnoredSignalStaysIgnored) {
     Scratch s("nimbus_interrupt_ignored");
     const int status = in_child([&] {
         ::signal(SIGHUP, SIG_IGN);  // nohup
-        interrupt_cleanup::install();
+        interrupt_cleanup::install(true);
         interrupt_cleanup::add_file(s.file.string());
         ::raise(SIGHUP);
         ::_exit(7);

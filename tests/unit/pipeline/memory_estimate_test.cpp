@@ -43,6 +43,10 @@ TEST(MemoryEstimate, EachModelAddsItsStorage) {
     const double s4 = estimate("dom");
     EXPECT_GT(estimate("dom", [](Scene& s) { s.model.dom.order = 8, s.model.dom.legendre_order = 7; }), 2 * s4 - single);
     EXPECT_GT(estimate("dom", [](Scene& s) { s.model.dom.iteration = "gmres"; }), 2 * s4 - single);
+    // Each octant in flight holds its own psi and source (step scheme: 2 values per direction).
+    const Decomposition d(MPI_COMM_WORLD, {48, 48, 32});
+    EXPECT_DOUBLE_EQ(s4 - estimate("dom", [](Scene& s) { s.model.dom.octant_overlap = 1; }),
+                     8.0 * 7 * 2 * 3 * static_cast<double>(d.local().cells()));  // S4: 3 directions per octant
     // LPM: 6k² coarse bins per cell.
     EXPECT_GT(estimate("lpm", [](Scene& s) { s.model.lpm.p = 3, s.model.lpm.k = 3; }),
               estimate("lpm", [](Scene& s) { s.model.lpm.p = 3, s.model.lpm.k = 1; }));

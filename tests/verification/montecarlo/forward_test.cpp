@@ -682,6 +682,11 @@ TEST(Forward, EtaIsTheEarliestStop) {
     EXPECT_EQ(eta_to_stop(o, 10, 1.0, 1.2, 0.0).until, "photon count");
     o.target_rel_error = 0.001;  // beyond the photon count: the photon count
     EXPECT_EQ(eta_to_stop(o, 10, 1.0, 1.2, 0.02).until, "photon count");
+    // Met already after 2 batches, but the target is tested from the 8th: 6 more at 0.1 s.
+    o.target_rel_error = 0.01;
+    e = eta_to_stop(o, 2, 0.2, 0.3, 0.005);
+    EXPECT_NEAR(e.seconds, 0.6, 1e-12);
+    EXPECT_EQ(e.until.rfind("target error", 0), 0u);
 }
 
 }  // namespace
