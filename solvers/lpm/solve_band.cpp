@@ -139,8 +139,10 @@ BandResult solve_sources(const Decomposition& d, const Medium& m, const LightTra
         }
         ++r.iterations;
         if (dsa && r.iterations < opt.iterations) {
-            // U = S(δ_n) + S(f_{n-1}) - S(f_{n-1}): the error's source, whose P1 solution is the
-            // new correction f_n; U += S(f_n) makes the next round propagate it.
+            // The round propagated all of U and left in it S(δ_n), the scattering of its increment;
+            // minus S(f_{n-1}) that is the scattering of the iterate's change δ_n - f_{n-1}, the
+            // error's source, whose P1 solution is the new correction f_n; U += S(f_n) makes the
+            // next round propagate it.
             if (corrected) add_p1_scattering(U, -1.0, correction, kappa, bo.albedo, correction_g, mean);
             correction_g = corrected ? 0.0 : bo.g;
             correction = diffusion_tail(d, m, bo, U, kappa, ang, solver_report, !corrected, false);
@@ -163,9 +165,9 @@ BandResult solve_sources(const Decomposition& d, const Medium& m, const LightTra
         if (r.max_U.back() < opt.epsilon) break;
     }
 
-    // The last correction is not propagated: U goes back to the error's source, whose P1
-    // solution is the tail below. Every S(f) added is so removed once, and the energy balance
-    // closes as without DSA.
+    // After the last round (or a stop right after a correction) U less the last S(f) is the
+    // error's source, whose P1 solution is the tail below. Every S(f) added is so removed once,
+    // and the energy balance closes as without DSA.
     if (corrected) add_p1_scattering(U, -1.0, correction, kappa, bo.albedo, correction_g, mean);
     double absorbed = 0.0, remaining = 0.0;
     for_each_cell(own, [&](int i, int j, int k) {

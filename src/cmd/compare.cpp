@@ -106,6 +106,12 @@ nlohmann::json compare_runs(const CompareArgs& args) {
     if (h_b > 0) out["cell_size_m_b"] = h_b;
     out["same_cells"] = same_cells;
     out["same_medium"] = density_diff <= kSameMediumTolerance && same_cells;
+    // Bands of A that the reference lacks are not compared: listed, so that the report says so.
+    std::vector<std::string> not_compared;
+    for (const std::string& band : list_group(args.a, field))
+        if (std::find(bands.begin(), bands.end(), band) == bands.end()) not_compared.push_back(band);
+    sort_in_scene_order(scene_a, not_compared);
+    out["bands_not_in_b"] = not_compared;
     for (const std::string& band : bands) {
         const std::string path = field + "/" + band;
         if (!has_dataset(args.a, path)) throw Error(fmt::format("'{}' has no {} (the reference has)", args.a, path));
@@ -235,6 +241,9 @@ void add_compare_command(CLI::App& app) {
             log::warn("the density fields of {} and {} differ (max relative difference {:.3g}): these are runs of "
                       "different media, and the errors compare different problems",
                       args->a, args->b, result["density_max_rel_diff"].get<double>());
+        if (!result["bands_not_in_b"].empty())
+            log::warn("{} has band{} {} that the reference {} lacks: not compared", args->a,
+                      result["bands_not_in_b"].size() == 1 ? "" : "s", result["bands_not_in_b"].dump(), args->b);
         if (args->json) std::printf("%s\n", result.dump(2).c_str()); else print_table(result);
     });
 }

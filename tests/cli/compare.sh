@@ -225,6 +225,21 @@ echo "not HDF5" > "$tmp/text.h5"
 expect_error "nimbus: error: cannot open HDF5 file '$tmp/text.h5': it is not an HDF5 file" "$A" "$tmp/text.h5"
 head -c 2000 "$A" > "$tmp/truncated.h5"
 expect_error "nimbus: error: cannot open HDF5 file '$tmp/truncated.h5': HDF5 refuses it: truncated or damaged" "$A" "$tmp/truncated.h5"
+# A reference with band r only: A's g and b are not compared, and said so (they used to be
+# dropped silently).
+"$py" - "$A" "$tmp/r_only.h5" <<'PY' || { echo "FAIL: making r_only.h5"; exit 1; }
+import shutil, sys
+import h5py
+shutil.copy(sys.argv[1], sys.argv[2])
+with h5py.File(sys.argv[2], "r+") as f:
+    for name in ("fluence_diffuse", "fluence_diffuse_stderr"):
+        for band in "gb":
+            del f[f"fields/{name}/{band}"]
+PY
+out=$(nim compare "$A" "$tmp/r_only.h5" 2>&1)
+if [ $? -eq 0 ] && echo "$out" | grep -q "has bands \[\"g\",\"b\"\] that the reference .* lacks: not compared" &&
+   echo "$out" | grep -Eq "^r +[0-9]"; then pass=$((pass + 1)); else
+  fail=$((fail + 1)); echo "FAIL: bands of A missing from B not reported"; echo "$out" | tail -3; fi
 # A against itself: all zeros, and a warning that this is by construction.
 out=$(nim compare "$A" "$A" 2>&1)
 if [ $? -eq 0 ] && echo "$out" | grep -q "A and B are the same file"; then pass=$((pass + 1)); else
