@@ -157,10 +157,10 @@ void warn_of_outputs_left(MPI_Comm comm, const Scene& scene) {
         stale_bytes += fs::file_size(it->path(), size_ec);
     }
     if (stale > 0)
-        log::warn("{} temporary file{} of an earlier, killed run ({}.*.tmp, {:.1f} MB) in {}: its process is gone; "
-                  "remove {}",
+        log::warn("{} temporary file{} of an earlier, killed run ({}.*.tmp, {:.1f} MB) in {}: the process that wrote "
+                  "{} no longer runs on this host; remove {} unless a run on another host shares the folder",
                   stale, stale == 1 ? "" : "s", scene.output.name, static_cast<double>(stale_bytes) / 1e6,
-                  scene.output.dir, stale == 1 ? "it" : "them");
+                  scene.output.dir, stale == 1 ? "it" : "them", stale == 1 ? "it" : "them");
 }
 
 nlohmann::json library_versions() {
