@@ -213,13 +213,7 @@ void Hdf5Writer::write_field(const std::string& name, const Field<double>& f,
     check_collective(comm, allocated,
                      where + ": not enough memory on some rank for the field's float copy; use more ranks or a "
                              "smaller grid");
-    {
-        size_t at = 0;  // owned cells in x-fastest order, components interleaved (Field::owned_values)
-        for (int k = b.lo[2]; k < b.hi[2]; ++k)
-            for (int j = b.lo[1]; j < b.hi[1]; ++j)
-                for (int i = b.lo[0]; i < b.hi[0]; ++i)
-                    for (int c = 0; c < f.ncomp(); ++c) values[at++] = static_cast<float>(f(i, j, k, c));
-    }
+    f.copy_owned_to(values.data());
     // Nothing non-finite is written: a NaN, an Inf or a value beyond float32's range (a density
     // of 1e300, which a run takes in double) would open in ParaView as a valid field.
     std::int64_t bad = std::count_if(values.begin(), values.end(), [](float v) { return !std::isfinite(v); });

@@ -1,8 +1,11 @@
 #include "io/output/output_files.h"
 
+#include <signal.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <random>
 #include <system_error>
@@ -44,6 +47,24 @@ OutputFiles::~OutputFiles() {
     if (committed_ || rank_ != 0) return;
     std::error_code ec;
     for (const auto& [tmp, final_path] : files_) fs::remove(tmp, ec);
+}
+
+OutputFiles::Stale OutputFiles::stale_temporaries(const std::string& dir, const std::string& name) {
+    Stale stale;
+    std::error_code ec;
+    const std::string prefix = name + ".";
+    for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+        const std::string f = it->path().filename().string();
+        if (f.rfind(prefix, 0) != 0 || f.size() < 4 || f.compare(f.size() - 4, 4, ".tmp") != 0) continue;
+        const size_t dash = f.rfind('-'), dot = f.rfind('.', dash);  // the token (draw_token)
+        if (dash == std::string::npos || dot == std::string::npos) continue;
+        const long pid = std::strtol(f.substr(dot + 1, dash - dot - 1).c_str(), nullptr, 10);
+        if (pid <= 0 || ::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM) continue;
+        ++stale.files;
+        std::error_code size_ec;
+        stale.bytes += fs::file_size(it->path(), size_ec);
+    }
+    return stale;
 }
 
 std::string OutputFiles::add(const std::string& final_path) {

@@ -14,6 +14,7 @@
 
 #include <mpi.h>
 
+#include <cstdint>
 #include <string>
 #include <utility>
 #include <vector>
@@ -44,6 +45,15 @@ public:
     // renamed and the remaining temporaries are removed, the previous files restored, and every
     // rank throws the same Error.
     void commit();
+
+    // Temporaries of `name` in `dir` (<name>.<ext>.<pid>-<8 hex>.tmp) whose process no longer
+    // runs on this host: a killed run's (SIGKILL, an out-of-memory kill, MPI_Abort run no
+    // cleanup). Their count and bytes. Not collective.
+    struct Stale {
+        int files = 0;
+        std::uintmax_t bytes = 0;
+    };
+    static Stale stale_temporaries(const std::string& dir, const std::string& name);
 
 private:
     std::string replace_finals();  // rank 0's part of commit(); the error, or empty

@@ -44,13 +44,17 @@ public:
 
     // Owned cells copied into a dense C-order array [z][y][x][c] (for output).
     std::vector<T> owned_values() const {
-        std::vector<T> out;
-        out.reserve(static_cast<size_t>(owned_.cells() * ncomp_));
+        std::vector<T> out(static_cast<size_t>(owned_.cells() * ncomp_));
+        copy_owned_to(out.data());
+        return out;
+    }
+    // The same into out (owned cells x ncomp elements), converted to U (the writer's floats).
+    template <class U>
+    void copy_owned_to(U* out) const {
         for (int k = owned_.lo[2]; k < owned_.hi[2]; ++k)
             for (int j = owned_.lo[1]; j < owned_.hi[1]; ++j)
                 for (int i = owned_.lo[0]; i < owned_.hi[0]; ++i)
-                    for (int c = 0; c < ncomp_; ++c) out.push_back((*this)(i, j, k, c));
-        return out;
+                    for (int c = 0; c < ncomp_; ++c) *out++ = static_cast<U>((*this)(i, j, k, c));
     }
 
 private:

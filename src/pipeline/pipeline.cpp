@@ -6,9 +6,6 @@
 #include <petscversion.h>
 
 #include <algorithm>
-#include <cerrno>
-#include <csignal>
-#include <cstdlib>
 #include <cmath>
 #include <filesystem>
 #include <vector>
@@ -139,28 +136,13 @@ void warn_of_outputs_left(MPI_Comm comm, const Scene& scene) {
         log::warn("output.hdf5 = false: {} (and its .xdmf) from an earlier run stays beside this run's image", h5);
     if (!scene.output.image && fs::exists(exr, ec))
         log::warn("output.image = false: {} (and its .png) from an earlier run stays beside this run's fields", exr);
-    // Temporaries of a run that was killed (SIGKILL, an out-of-memory kill, MPI_Abort: no cleanup
-    // runs) stay until removed: said, with the process that made them gone (same host).
-    int stale = 0;
-    std::uintmax_t stale_bytes = 0;
-    const std::string prefix = scene.output.name + ".";
-    for (fs::directory_iterator it(scene.output.dir, ec), end; !ec && it != end; it.increment(ec)) {
-        const std::string f = it->path().filename().string();
-        if (f.rfind(prefix, 0) != 0 || f.size() < 4 || f.compare(f.size() - 4, 4, ".tmp") != 0) continue;
-        // <name>.<ext>.<pid>-<8 hex>.tmp (output_files.cpp)
-        const size_t dash = f.rfind('-'), dot = f.rfind('.', dash);
-        if (dash == std::string::npos || dot == std::string::npos) continue;
-        const long pid = std::strtol(f.substr(dot + 1, dash - dot - 1).c_str(), nullptr, 10);
-        if (pid <= 0 || (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM)) continue;
-        ++stale;
-        std::error_code size_ec;
-        stale_bytes += fs::file_size(it->path(), size_ec);
-    }
-    if (stale > 0)
+    // Temporaries of a run that was killed stay until removed: said.
+    const OutputFiles::Stale stale = OutputFiles::stale_temporaries(scene.output.dir, scene.output.name);
+    if (stale.files > 0)
         log::warn("{} temporary file{} of an earlier, killed run ({}.*.tmp, {:.1f} MB) in {}: the process that wrote "
                   "{} no longer runs on this host; remove {} unless a run on another host shares the folder",
-                  stale, stale == 1 ? "" : "s", scene.output.name, static_cast<double>(stale_bytes) / 1e6,
-                  scene.output.dir, stale == 1 ? "it" : "them", stale == 1 ? "it" : "them");
+                  stale.files, stale.files == 1 ? "" : "s", scene.output.name, static_cast<double>(stale.bytes) / 1e6,
+                  scene.output.dir, stale.files == 1 ? "it" : "them", stale.files == 1 ? "it" : "them");
 }
 
 nlohmann::json library_versions() {
