@@ -239,7 +239,8 @@ void report_negative_fluence(const Decomposition& d, const std::vector<BandOptic
 }
 
 // Figures of merit into values()["dom"] (Kripke's grind time: time / (global unknowns x
-// iterations)), and the log line. Collective.
+// iterations): per unknown of the whole grid, so sweeping only the medium's box lowers it; the
+// solves' swept_cell_fraction says by how much), and the log line. Collective.
 void record_figures_of_merit(const Decomposition& d, const dom::TransportSweeper& sweeper,
                              const dom::AngularSet& ang, double iter_seconds, double unknown_iterations,
                              nlohmann::json& rec) {
@@ -359,6 +360,10 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
             iter_seconds += seconds;
             unknown_iterations += static_cast<double>(d.global().cells()) * ang.quadrature.size() * res.iterations;
             entry["dsa_linear_iterations"] = res.dsa_linear_iterations;
+            entry["sweeps"] = res.sweeps;
+            // Share of the grid the sweeps covered (the medium's box, then the whole domain once).
+            entry["swept_cell_fraction"] =
+                res.sweeps > 0 ? res.swept_cells / (res.sweeps * static_cast<double>(d.global().cells())) : 0.0;
             entry["delta_m_f"] = p.phase.f;
             entry["seconds"] = seconds;
             record_energy_balance(d, m.grid.cell_volume(), p, sw, entry);

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "solvers/diffusion/petsc_support.h"
@@ -188,6 +189,10 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     c.scatter_only.moments = c.s;
     c.scatter_only.nl = 0;
     c.scatter_only.rows = &rows;
+    // Every sweep but the last covers the bounding box of the medium and its sources
+    // (TransportSweeper::region).
+    const std::optional<Box> region = sweeper.region(p.kappa, rows);
+    c.scatter_only.region = region ? &*region : nullptr;
 
     // b: one sweep of the external source (lights + emission), scattering off.
     SweepSource external;
@@ -197,6 +202,7 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     external.nl = p.nl;
     external.light_phase = p.light_phase;
     external.rows = &rows;
+    external.region = c.scatter_only.region;
     const double y0inv = std::sqrt(4.0 * std::acos(-1.0));
     rows.for_each_cell([&](size_t cell, size_t q) { c.s[q * nm] = y0inv * p.emission.data()[cell]; });
     sweeper.sweep(external, out);
@@ -277,7 +283,11 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
         make_source_moments(p, c.chi, rows, xv, c.s.data(), true);
         check(VecRestoreArrayRead(x, &xv), "VecRestoreArrayRead");
     }
+    external.region = nullptr;
     sweeper.sweep(external, out);
+    const double region_cells = static_cast<double>(region ? region->cells() : d.global().cells());
+    res.sweeps = c.sweeps + 2;  // the operator's, b's and the last
+    res.swept_cells = (c.sweeps + 1) * region_cells + static_cast<double>(d.global().cells());
     res.seconds = MPI_Wtime() - t0;
     return res;
 }

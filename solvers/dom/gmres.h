@@ -30,7 +30,9 @@
 // is 0, so those moments feed no source (12.4% of the default cloud's cells; with the moments of
 // the sweeps packed too, peak memory per rank 1146 -> 484 MiB on it at 2 ranks).
 // b costs one sweep of the external (first-collision + emission) source; the initial guess is 0;
-// a last sweep from the converged moments yields the fluence, flux and leakage in `out`. Sweeps
+// a last sweep from the converged moments yields the fluence, flux and leakage in `out`. Every
+// sweep but that last one covers only the medium's bounding box (TransportSweeper::region),
+// which gives the same moments (the Krylov vectors live on the source rows, inside it). Sweeps
 // per band: iterations + 2 (b, the last one; + 1 per GMRES restart); DSA solves: iterations + 1.
 // The history is the relative change per Krylov iteration (passed to `monitor` as each is
 // recorded); dsa_linear_iterations counts the preconditioner's V-cycles (two per DSA solve).

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <optional>
 
 #include "solvers/dom/dsa.h"
 #include "solvers/dom/gmres.h"
@@ -82,10 +83,17 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
     src.nl = p.nl;
     src.light_phase = p.light_phase;
     src.rows = &rows;
+    // The sweeps cover the bounding box of the medium and its sources (TransportSweeper::region);
+    // one last sweep of the whole domain gives the fields.
+    const std::optional<Box> region = sweeper.region(p.kappa, rows);
+    src.region = region ? &*region : nullptr;
+    const double region_cells = static_cast<double>(region ? region->cells() : d.global().cells());
     std::vector<double> norms;  // of the fluence, per iteration (blew_up)
     for (int it = 1; it <= max_iterations; ++it) {
         make_source_moments(p, chi, rows, phi.data(), s.data(), true);
         sweeper.sweep(src, out);
+        ++res.sweeps;
+        res.swept_cells += region_cells;
         if (dsa) {
             bool finite = true;
             {
@@ -159,7 +167,15 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
             break;
         }
     }
-    std::swap(phi, out.phi);
+    if (region && res.converged) {  // phi: the converged iterate
+        make_source_moments(p, chi, rows, phi.data(), s.data(), true);
+        src.region = nullptr;
+        sweeper.sweep(src, out);
+        ++res.sweeps;
+        res.swept_cells += static_cast<double>(d.global().cells());
+    } else {
+        std::swap(phi, out.phi);
+    }
     res.seconds = MPI_Wtime() - t0;
     return res;
 }

@@ -2,10 +2,15 @@
 //   phi^{l+1/2} = sweep( kappa* a* Σ chi_l Y phi^l + Q )            (transport_sweep.h)
 //   phi^{l+1}   = phi^{l+1/2} (+ DSA correction of the scalar flux)
 // stopping when the relative change of the scalar fluence F = Σ_n w_n psi_n,
-//   ||F^{l+1} - F^l||_2 / ||F^{l+1}||_2  (every owned cell, all ranks; F = sqrt(4π) phi_0 where
-//   phi is computed, the source rows of transport_sweep.h),
+//   ||F^{l+1} - F^l||_2 / ||F^{l+1}||_2  (the swept cells below, all ranks; F = sqrt(4π) phi_0
+//   where phi is computed, the source rows of transport_sweep.h),
 // falls below opt.tolerance. With plain source iteration the error left is about
 // tolerance · rho/(1 - rho), rho ≈ a the spectral radius; with DSA rho is small.
+// The iterations sweep only the medium's bounding box (TransportSweeper::region; outside it, F
+// is 0 in every iterate, so the change is the box's); once converged, one more sweep of the
+// whole domain from the last iterate gives the fields, with the light in the void around the
+// medium (the sweep after DSA's last correction: a source iteration step, which only reduces the
+// error left).
 //
 // Collective over d.comm(). Returns the history whether or not it converged (the model turns
 // non-convergence into an Error); the last sweep's fields are in `out`.
@@ -30,6 +35,8 @@ struct IterationResult {
     int iterations = 0;
     std::vector<double> history;     // relative change after each iteration
     int dsa_linear_iterations = 0;   // PFMG V-cycles, summed over the DSA solves
+    int sweeps = 0;                  // transport sweeps
+    double swept_cells = 0;          // cells those sweeps covered, summed (TransportSweeper::region)
     double seconds = 0;              // total iteration time (sweeps, moments, DSA)
 };
 

@@ -20,10 +20,10 @@ constexpr int kMaxPeriodicPasses = 10000;
 constexpr int kPeriodicAndersonDepth = 5;
 constexpr const char* kFaceNames[6] = {"x-", "x+", "y-", "y+", "z-", "z+"};
 
-// Smallest value of any component over the owned cells.
-double min_owned(const Field<double>& psi) {
+// Smallest value of any component over the cells of b.
+double min_over(const Field<double>& psi, const Box& b) {
     double m = std::numeric_limits<double>::infinity();
-    for_each_cell(psi.owned(), [&](int i, int j, int k) {
+    for_each_cell(b, [&](int i, int j, int k) {
         const double* v = &psi(i, j, k);
         for (int c = 0; c < psi.ncomp(); ++c) m = std::min(m, v[c]);
     });
@@ -127,8 +127,9 @@ void group_sources(const Box& own, const SweepSource& src, const SourceRows& row
 // accumulates into it (in cache; a separate fill of the outputs was a 160-byte-per-cell pass
 // over memory every sweep, 9% of the DOM phase on the default cloud).
 // phi is packed on the source rows (SweepOutput); outside their spans only the fluence and flux
-// are reduced (a moment operator with no moments).
-void group_moments(const Box& own, const AngularSet& ang, const std::vector<OctantSlot>& slots,
+// are reduced (a moment operator with no moments). Only the cells of act (own's part of the
+// sweep's region, which holds the spans) were swept: the outputs are 0 elsewhere.
+void group_moments(const Box& own, const Box& act, const AngularSet& ang, const std::vector<OctantSlot>& slots,
                    const SourceRows& rows, SweepOutput& out, bool first) {
     const int nmom = ang.nmom;
     std::vector<OctantMomentOp> ops, fluence_ops;
@@ -149,7 +150,10 @@ void group_moments(const Box& own, const AngularSet& ang, const std::vector<Octa
                 std::fill_n(out.fluence.data() + c, nx, 0.0);
                 std::fill_n(out.flux.data() + 3 * c, 3 * nx, 0.0);
             }
-            for (size_t o = 0; o < slots.size(); ++o) {
+            // The row's swept cells [a0, a1) (none outside act), which hold its span [lo, hi).
+            const bool swept = j >= act.lo[1] && j < act.hi[1] && k >= act.lo[2] && k < act.hi[2];
+            const int a0 = swept ? act.lo[0] - own.lo[0] : 0, a1 = swept ? act.hi[0] - own.lo[0] : 0;
+            for (size_t o = 0; o < slots.size() && a1 > a0; ++o) {
                 const Field<double>& psi = *slots[o].psi;
                 const double* p = &psi(own.lo[0], j, k);
                 const std::ptrdiff_t ps = psi.stride(0);
@@ -159,9 +163,9 @@ void group_moments(const Box& own, const AngularSet& ang, const std::vector<Octa
                         apply_moments(op, b - a, p + a * ps, ps, phi_a, out.fluence.data() + c + a,
                                       out.flux.data() + 3 * (c + a));
                 };
-                reduce(fluence_ops[o], 0, lo, phi);
+                reduce(fluence_ops[o], a0, lo, phi);
                 reduce(ops[o], lo, hi, phi + q * nmom);
-                reduce(fluence_ops[o], hi, nx, phi);
+                reduce(fluence_ops[o], hi, a1, phi);
             }
             q += hi - lo;
         }
@@ -278,6 +282,50 @@ std::ptrdiff_t TransportSweeper::plane_index(int axis, int i, int j, int k) cons
     return static_cast<std::ptrdiff_t>(idx[b2] - own.lo[b2]) * own.size(b1) + (idx[b1] - own.lo[b1]);
 }
 
+std::optional<Box> TransportSweeper::region(const Field<double>& kappa, const SourceRows& rows) const {
+    const Box& own = d_.local();
+    const Box& g = d_.global();
+    // -lo and hi of the bounding box, so one MAX reduction gives both.
+    std::array<int, 6> ext{};
+    for (int a = 0; a < 3; ++a) {
+        ext[static_cast<size_t>(a)] = -g.hi[a];
+        ext[static_cast<size_t>(3 + a)] = g.lo[a];
+    }
+    auto take = [&](int i, int j, int k) {
+        const int c[3] = {i, j, k};
+        for (size_t a = 0; a < 3; ++a) {
+            ext[a] = std::max(ext[a], -c[a]);
+            ext[3 + a] = std::max(ext[3 + a], c[a] + 1);
+        }
+    };
+    for (int k = own.lo[2]; k < own.hi[2]; ++k)
+        for (int j = own.lo[1]; j < own.hi[1]; ++j) {
+            int lo = rows.lo(j, k), hi = rows.hi(j, k);
+            for (int i = own.lo[0]; i < own.hi[0]; ++i)
+                if (kappa(i, j, k) > 0.0) {
+                    lo = std::min(lo, i);
+                    hi = std::max(hi, i + 1);
+                }
+            if (hi > lo) {
+                take(lo, j, k);
+                take(hi - 1, j, k);
+            }
+        }
+    MPI_Allreduce(MPI_IN_PLACE, ext.data(), 6, MPI_INT, MPI_MAX, d_.comm());
+    for (bool r : bc_.reflective)
+        if (r) return std::nullopt;
+    Box b;
+    for (int a = 0; a < 3; ++a) {
+        b.lo[a] = -ext[static_cast<size_t>(a)];
+        b.hi[a] = ext[static_cast<size_t>(3 + a)];
+    }
+    if (b.empty()) return Box{g.lo, g.lo};
+    for (int a = 0; a < 3; ++a)
+        if (d_.periodic(a)) b = b.with_range(a, g.lo[a], g.hi[a]);
+    if (b == g) return std::nullopt;
+    return b;
+}
+
 void TransportSweeper::reset_reflections() {
     for (auto& face : reflected_)
         for (auto& plane : face) plane.clear();
@@ -365,6 +413,30 @@ void TransportSweeper::set_upwind_ghosts(Field<double>& psi, int o) {
     }
 }
 
+void TransportSweeper::set_region_inflow(Field<double>& psi, int o, const Box& act, const Box& region) {
+    if (act.empty()) return;
+    const auto& oc = ang_.octants[static_cast<size_t>(o)];
+    const Box& g = d_.global();
+    const int nd = oc.size(), blocks = psi.ncomp() / nd;
+    for (int a = 0; a < 3; ++a) {
+        const int s = oc.octant.s[a];
+        // The region's upwind face: on the domain's face set_upwind_ghosts fills it; where the
+        // region reaches on past this rank the upstream rank sends it.
+        const int face = s > 0 ? region.lo[a] : region.hi[a];
+        if (face == (s > 0 ? g.lo[a] : g.hi[a])) continue;
+        if (face != (s > 0 ? act.lo[a] : act.hi[a])) continue;
+        // Void all the way back to the domain's faces, none of them a mirror (region()): a
+        // downward direction brings the sky radiance, an upward one comes from the vacuum below.
+        for_each_cell(upwind_ghost_plane(act, a, s), [&](int i, int j, int k) {
+            double* v = &psi(i, j, k);
+            for (int n = 0; n < nd; ++n) {
+                const double in = sky_on_ && oc.dir[static_cast<size_t>(n)].z < 0.0 ? sky_radiance_ : 0.0;
+                for (int b = 0; b < blocks; ++b) v[b * nd + n] = in;
+            }
+        });
+    }
+}
+
 void TransportSweeper::store_reflected(const Field<double>& psi, int o) {
     const auto& oc = ang_.octants[static_cast<size_t>(o)];
     const Box& own = d_.local();
@@ -396,10 +468,10 @@ void TransportSweeper::store_reflected(const Field<double>& psi, int o) {
     }
 }
 
-void TransportSweeper::reduce_octant(const Field<double>& psi, int o, SweepOutput& out) {
+void TransportSweeper::reduce_octant(const Field<double>& psi, int o, const Box& act, SweepOutput& out) {
     const auto& oc = ang_.octants[static_cast<size_t>(o)];
     const int nd = oc.size();
-    const Box& own = d_.local();
+    const Box& own = act;  // the swept cells
     const Box& g = d_.global();
     const double area = h_ * h_;
     // Leakage: the outgoing face values of the cells on the domain's downwind faces.
@@ -430,6 +502,18 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
     check_collective(d_.comm(), rows.box() == own && src.moments.size() == packed,  // else a caller's bug
                      fmt::format("dom: the sweep's source rows or moments do not fit this rank's box ({} moments "
                                  "for {} source cells x {})", src.moments.size(), rows.cells(), nmom));
+    // The cells swept: act, this rank's part of the region (SweepSource::region).
+    const Box region = src.region ? *src.region : d_.global();
+    const Box act = own.intersect(region);
+    bool mirrors = false;
+    for (bool r : bc_.reflective) mirrors = mirrors || r;
+    bool spans_inside = true;  // the source rows lie in the region
+    for (int k = own.lo[2]; k < own.hi[2]; ++k)
+        for (int j = own.lo[1]; j < own.hi[1]; ++j)
+            if (rows.hi(j, k) > rows.lo(j, k) && !(act.contains(rows.lo(j, k), j, k) && act.contains(rows.hi(j, k) - 1, j, k)))
+                spans_inside = false;
+    check_collective(d_.comm(), !src.region || (!mirrors && spans_inside),  // else a caller's bug
+                     "dom: a sweep confined to a region needs every source cell inside it and no reflective face");
     out.phi.resize(packed);  // overwritten by the first group_moments
     if (out.fluence.owned() != own) {
         out.fluence = Field<double>(own, 0, 1, 0.0);
@@ -490,13 +574,14 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
     auto periodic_layer = [&](OctantSlot& sl, int k) {
         Field<double>& psi = *sl.psi;
         const int nd = sl.nd;
-        // Visits the layer's periodic ghost values and the edge values they must equal.
+        // Visits the layer's periodic ghost values and the edge values they must equal (on the
+        // swept cells: a region spans periodic axes whole).
         auto for_each_ghost = [&](auto&& f) {
             for (int a = 0; a < 2; ++a) {
                 if (!d_.periodic(a)) continue;
                 const int s = sl.octant.s[a];
-                const int ghost = upwind_ghost_plane(own, a, s).lo[a], edge = s > 0 ? own.hi[a] - 1 : own.lo[a];
-                for (int t = own.lo[1 - a]; t < own.hi[1 - a]; ++t)
+                const int ghost = upwind_ghost_plane(act, a, s).lo[a], edge = s > 0 ? act.hi[a] - 1 : act.lo[a];
+                for (int t = act.lo[1 - a]; t < act.hi[1 - a]; ++t)
                     f((a == 0 ? &psi(ghost, t, k) : &psi(t, ghost, k)) + face_offset(a, nd),
                       (a == 0 ? &psi(edge, t, k) : &psi(t, edge, k)) + face_offset(a, nd));
             }
@@ -575,8 +660,8 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
             sl.fx = face_offset(0, nd);
             sl.fy = face_offset(1, nd);
             sl.fz = face_offset(2, nd);
-            sl.rx = sweep::upwind_range(own, 0, oc.octant);
-            sl.ry = sweep::upwind_range(own, 1, oc.octant);
+            sl.rx = sweep::upwind_range(act, 0, oc.octant);
+            sl.ry = sweep::upwind_range(act, 1, oc.octant);
             sl.last_i = sl.rx.end - sl.rx.step;
             sl.last_j = sl.ry.end - sl.ry.step;
             slots.push_back(sl);
@@ -589,13 +674,15 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
         timing_.moment_seconds += MPI_Wtime() - t_src;
         for (OctantSlot& sl : slots) {
             set_upwind_ghosts(*sl.psi, sl.o);
+            set_region_inflow(*sl.psi, sl.o, act, region);
             if (periodic) load_periodic_planes(*sl.psi, sl.o, !external);
         }
         const double t0 = MPI_Wtime();
         sweep::SweepStats stats;
         if (slots.size() == 1) {
             OctantSlot& sl = slots[0];
-            stats = sweep::run(d_, *sl.psi, sl.octant, opt_, [&](int i, int j, int k) { kernel(sl, i, j, k); });
+            stats = sweep::run(d_, *sl.psi, sl.octant, opt_, [&](int i, int j, int k) { kernel(sl, i, j, k); },
+                               region);
         } else {
             std::vector<Field<double>*> fields;
             std::vector<sweep::Octant> octants;
@@ -604,7 +691,8 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
                 octants.push_back(sl.octant);
             }
             stats = sweep::run_octants(d_, fields, octants, opt_,
-                                       [&](int q, int i, int j, int k) { kernel(slots[static_cast<size_t>(q)], i, j, k); });
+                                       [&](int q, int i, int j, int k) { kernel(slots[static_cast<size_t>(q)], i, j, k); },
+                                       region);
         }
         timing_.sweep_seconds += MPI_Wtime() - t0;
         timing_.wait_seconds += stats.wait_seconds;
@@ -612,13 +700,13 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
             timing_.fixups += sl.fixups;
             store_reflected(*sl.psi, sl.o);
             if (periodic && external) store_periodic_planes(*sl.psi, sl.o);
-            out.min_psi = std::min(out.min_psi, min_owned(*sl.psi));
+            out.min_psi = std::min(out.min_psi, min_over(*sl.psi, act));
         }
         const double t1 = MPI_Wtime();
-        group_moments(own, ang_, slots, rows, out, first_group);
+        group_moments(own, act, ang_, slots, rows, out, first_group);
         first_group = false;
         timing_.moment_seconds += MPI_Wtime() - t1;
-        for (OctantSlot& sl : slots) reduce_octant(*sl.psi, sl.o, out);  // leakage
+        for (OctantSlot& sl : slots) reduce_octant(*sl.psi, sl.o, act, out);  // leakage
     }
     if (first_group) {  // no octant had directions: nothing was written
         std::fill(out.phi.begin(), out.phi.end(), 0.0);

@@ -48,6 +48,18 @@
 // passes; GMRES's operator sweeps start from zero. Local work only, no extra communication.
 // Periodic axes must not be split over ranks.
 //
+// Region (SweepSource::region, from region()): a sweep may cover only the bounding box of the
+// cells with extinction or a source. Outside it is void, so the light that enters the box is the
+// boundary's, carried unchanged (vacuum; with the sky radiance, L for downward directions, since
+// traced back every such ray ends on the top or a side face) and the light that leaves never
+// returns (no mirror faces; periodic axes are taken whole). Inside, the sweep then equals the
+// whole domain's (tests/unit/sweep_engine/dom_region_test.cpp: to 1e-13, after a whole sweep
+// too, on 1-3 ranks, regions that miss ranks or start on a slab boundary). The engine sweeps the
+// region's part of each rank (sweep.h); the cells just upwind of it that no rank sends are set
+// here (set_region_inflow). The outer iterations sweep the region, the last sweep the domain
+// (iteration.h, gmres.h): on the default cloud the box is 36% of the grid and the engine time of
+// the DOM phase fell 2.1x (solvers/dom/README.md, "Sweeping the medium's box").
+//
 // Outputs per sweep (owned cells): the moments phi_k = Σ_n w_n Y_k(Ω_n) psi_n (of the cells of
 // the source rows, SweepSource::rows, packed), the fluence
 // Σ_n w_n psi_n (W/m²), the flux Σ_n w_n Ω_n psi_n, and the NET power leaving through each
@@ -141,6 +153,15 @@ struct SweepSource {
     // cell where amp is nonzero (the first-collision source of this sweep) and every cell where
     // kappa* a* is (where the next source needs phi, which exists on the rows only).
     const SourceRows* rows = nullptr;
+    // The cells the sweep computes (global cells; null: the whole domain), from
+    // TransportSweeper::region: they hold every cell with extinction or a source, so everything
+    // outside is void and the light crossing it is known without a sweep: what enters the
+    // region is the boundary's (vacuum, or the sky radiance for downward directions) and what
+    // leaves it streams out of the domain without coming back. Inside, the sweep equals the
+    // whole domain's. Outside, phi, fluence and flux are 0, and the leakage counts only the
+    // region's cells on the domain's faces: the outer iterations sweep the region, and one last
+    // sweep of the whole domain gives the fields.
+    const Box* region = nullptr;
 };
 
 struct SweepOutput {
@@ -183,6 +204,12 @@ public:
                      bool fixup = true);
     // Collective. out is (re)allocated on d.local() when needed and overwritten.
     void sweep(const SweepSource& src, SweepOutput& out);
+    // Collective. The region SweepSource::region may confine the sweeps of a problem with
+    // extinction kappa and sources on rows to (global cells): the bounding box of the cells with
+    // kappa > 0 or in rows, over all ranks, whole along periodic axes; empty when there are none.
+    // Null when it would be the whole domain, or when a face is reflective (a mirror returns
+    // light that left the region).
+    std::optional<Box> region(const Field<double>& kappa, const SourceRows& rows) const;
     const SweepTiming& timing() const { return timing_; }
     const SweepBoundary& boundary() const { return bc_; }
     // Uniform sky radiance L (W/m²/sr) of the current band for SweepBoundary::sky.
@@ -215,10 +242,13 @@ public:
 
 private:
     void set_upwind_ghosts(Field<double>& psi, int o);
+    // The cells just upwind of the part act of a region (SweepSource::region) that no rank
+    // sweeps: vacuum, or the sky radiance for downward directions on sweeps that carry it.
+    void set_region_inflow(Field<double>& psi, int o, const Box& act, const Box& region);
     void store_reflected(const Field<double>& psi, int o);
     void load_periodic_planes(Field<double>& psi, int o, bool from_zero);  // upwind periodic ghosts of octant o
     void store_periodic_planes(const Field<double>& psi, int o);  // ... after its sweep
-    void reduce_octant(const Field<double>& psi, int o, SweepOutput& out);  // leakage of octant o
+    void reduce_octant(const Field<double>& psi, int o, const Box& act, SweepOutput& out);  // leakage of octant o
     int face_offset(int axis, int nd) const { return scheme_ == SpatialScheme::diamond ? (1 + axis) * nd : 0; }
     std::ptrdiff_t plane_index(int axis, int i, int j, int k) const;
 

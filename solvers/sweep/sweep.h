@@ -17,6 +17,7 @@
 #include <mpi.h>
 
 #include <algorithm>
+#include <utility>
 #include <vector>
 
 #include "solvers/sweep/order.h"
@@ -39,16 +40,17 @@ struct SweepStats {
 
 namespace detail {
 
-// The set-up run() and run_octants() share: this rank's box cut into tiles along y, and the
-// planes it exchanges with its neighbours. The octant enters only through its signs.
+// The set-up run() and run_octants() share: the cells this rank sweeps (its box within the
+// sweep's region) cut into tiles along y, and the planes it exchanges with its neighbours. The
+// octant enters only through its signs.
 struct Tiling {
-    Box own;
-    int ny, rows, ntiles;  // rows of own along y, rows per tile, tiles
+    Box own;               // d.local() ∩ region; empty: this rank takes no part
+    int ny, rows, ntiles;  // rows of own along y, rows per tile, tiles (0 when own is empty)
 
     // Tiles along y only when y is not split over ranks (then a y-face is whole per tile).
-    Tiling(const Decomposition& d, const SweepOptions& opt)
-        : own(d.local()),
-          ny(own.size(1)),
+    Tiling(const Decomposition& d, const SweepOptions& opt, const Box& region)
+        : own(d.local().intersect(region)),
+          ny(own.empty() ? 0 : own.size(1)),
           rows(d.dims()[1] == 1 ? std::clamp(opt.tile_rows, 1, std::max(1, ny)) : std::max(1, ny)),
           ntiles((ny + rows - 1) / rows) {}
 
@@ -75,27 +77,40 @@ struct Tiling {
 };
 
 // The rank one step along o's direction on each axis (side +1: downstream) or against it (side
-// -1: upstream). MPI_PROC_NULL at the domain boundary and along periodic axes, which are not
-// swept across: the caller handles periodic sweeps by iteration. Not collective.
-inline Int3 neighbours(const Decomposition& d, const Octant& o, int side) {
-    Int3 r{};
-    for (int a = 0; a < 3; ++a) r[a] = d.periodic(a) ? MPI_PROC_NULL : d.neighbor(a, side * o.s[a]);
+// -1: upstream). MPI_PROC_NULL at the domain boundary, along periodic axes, which are not
+// swept across (the caller handles periodic sweeps by iteration), and where the region ends on
+// this rank's side (its cells beyond are not swept). Not collective. On a tensor process grid
+// both ranks of a pair agree: the region reaches past this rank's box toward a neighbour exactly
+// when that neighbour's part of the region is not empty.
+inline Int3 neighbours(const Decomposition& d, const Tiling& t, const Box& region, const Octant& o, int side) {
+    Int3 r{MPI_PROC_NULL, MPI_PROC_NULL, MPI_PROC_NULL};
+    if (t.own.empty()) return r;
+    const Box& local = d.local();
+    for (int a = 0; a < 3; ++a) {
+        const int toward = side * o.s[a];  // +1: toward higher indices
+        const bool beyond = toward > 0 ? region.hi[a] > local.hi[a] : region.lo[a] < local.lo[a];
+        if (!d.periodic(a) && beyond) r[a] = d.neighbor(a, toward);
+    }
     return r;
 }
 
 }  // namespace detail
 
-// Collective over d.comm() (every rank calls it with the same octant). kernel(i, j, k) computes
-// the owned cell (i, j, k) of psi. Returns pipeline statistics of this rank.
+// Collective over d.comm() (every rank calls it with the same octant and region). kernel(i, j,
+// k) computes the owned cell (i, j, k) of psi, for the cells of `region` only (a box of global
+// cells, d.global() for all): the cells just upwind of the region hold whatever the caller put
+// there, like the ghost planes at the domain boundary, and ranks whose box misses the region
+// take no part. Returns pipeline statistics of this rank.
 template <class Kernel>
 SweepStats run(const Decomposition& d, Field<double>& psi, const Octant& o, const SweepOptions& opt,
-               Kernel&& kernel) {
+               Kernel&& kernel, const Box& region) {
     SweepStats stats;
     constexpr int kTag = 811;
-    const detail::Tiling tiling(d, opt);
+    const detail::Tiling tiling(d, opt, region);
     const Box& own = tiling.own;
     const int ntiles = tiling.ntiles;
-    const Int3 up = detail::neighbours(d, o, -1), down = detail::neighbours(d, o, +1);
+    if (own.empty()) return stats;
+    const Int3 up = detail::neighbours(d, tiling, region, o, -1), down = detail::neighbours(d, tiling, region, o, +1);
 
     std::vector<double> buf;
     std::vector<std::vector<double>> out(static_cast<size_t>(ntiles) + 2);
@@ -137,6 +152,13 @@ SweepStats run(const Decomposition& d, Field<double>& psi, const Octant& o, cons
     return stats;
 }
 
+// The whole domain.
+template <class Kernel>
+SweepStats run(const Decomposition& d, Field<double>& psi, const Octant& o, const SweepOptions& opt,
+               Kernel&& kernel) {
+    return run(d, psi, o, opt, std::forward<Kernel>(kernel), d.global());
+}
+
 // Several octants swept at once with data-driven scheduling (octant overlap: "octants
 // overlapped so the pipe stays full", DESIGN §3). Octant q has its own field psi[q] (>= 1 ghost
 // layer, any ncomp) and its own message tags, so a +z and a -z octant run concurrently from the
@@ -157,18 +179,21 @@ SweepStats run(const Decomposition& d, Field<double>& psi, const Octant& o, cons
 // octant in flight (one slab face each way, x ncomp).
 constexpr int kMaxOctants = 8;
 
+//
+// region: as in run().
 template <class Kernel>
 SweepStats run_octants(const Decomposition& d, const std::vector<Field<double>*>& psi, const std::vector<Octant>& octants,
-                       const SweepOptions& opt, Kernel&& kernel) {
+                       const SweepOptions& opt, Kernel&& kernel, const Box& region) {
     SweepStats stats;
     const int nq = static_cast<int>(octants.size());
     if (nq > kMaxOctants)
         throw Error(fmt::format("sweep::run_octants: {} octants at once, but only {} have message tags", nq,
                                 kMaxOctants));
     constexpr int kTagBase = 900;  // octant q, axis a: kTagBase + 3 q + a, up to 923 (run() uses 811-813)
-    const detail::Tiling tiling(d, opt);
+    const detail::Tiling tiling(d, opt, region);
     const Box& own = tiling.own;
     const int ntiles = tiling.ntiles;
+    if (own.empty()) return stats;
 
     struct State {
         Field<double>* psi = nullptr;
@@ -191,8 +216,8 @@ SweepStats run_octants(const Decomposition& d, const std::vector<Field<double>*>
         State& s = st[static_cast<size_t>(q)];
         s.psi = psi[static_cast<size_t>(q)];
         s.o = octants[static_cast<size_t>(q)];
-        s.up = detail::neighbours(d, s.o, -1);
-        s.down = detail::neighbours(d, s.o, +1);
+        s.up = detail::neighbours(d, tiling, region, s.o, -1);
+        s.down = detail::neighbours(d, tiling, region, s.o, +1);
         const int nc = s.psi->ncomp();
         for (int a = 0; a < 2; ++a) {
             if (s.up[a] == MPI_PROC_NULL) continue;
@@ -277,6 +302,13 @@ SweepStats run_octants(const Decomposition& d, const std::vector<Field<double>*>
     }
     MPI_Waitall(static_cast<int>(sends.size()), sends.data(), MPI_STATUSES_IGNORE);
     return stats;
+}
+
+// The whole domain.
+template <class Kernel>
+SweepStats run_octants(const Decomposition& d, const std::vector<Field<double>*>& psi, const std::vector<Octant>& octants,
+                       const SweepOptions& opt, Kernel&& kernel) {
+    return run_octants(d, psi, octants, opt, std::forward<Kernel>(kernel), d.global());
 }
 
 }  // namespace nimbus::sweep

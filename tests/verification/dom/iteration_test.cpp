@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -74,6 +75,61 @@ TEST(DomIteration, OneAndTwoRanksAgreeToTheTolerance) {
             std::printf("%s, 1 vs %d ranks: max diff %.3e of peak %.4f\n", method, test::world_size(), diff, peak);
         EXPECT_GT(peak, 0.0);
         EXPECT_LE(diff, 1e-8 * peak) << method;
+    }
+}
+
+// The outer iterations sweep only the bounding box of the medium (TransportSweeper::region) and
+// one last sweep covers the domain. The reference is the same problem with an extinction of
+// 1e-300 /m in its empty cells, whose region is the whole domain: the fields agree everywhere,
+// in the void around the cloud too, to the iteration's tolerance.
+TEST(DomIteration, SweepingTheMediumsBoxGivesTheWholeDomainsAnswer) {
+    test::DomWorld w = cloud(MPI_COMM_WORLD);
+    const dom::AngularSet ang = s4_l3();
+    dom::BandProblem boxed = dom::make_band_optics(w.m, 0, w.d.local(), ang, true);
+    dom::add_light_sources(boxed, w.d, w.m, w.light, 0, ang);
+    dom::BandProblem filled = boxed;
+    for_each_cell(w.d.local(), [&](int i, int j, int k) {
+        if (filled.kappa(i, j, k) == 0.0) filled.kappa(i, j, k) = 1e-300;
+    });
+    sweep::SweepOptions opt;
+    opt.tile_rows = 3;
+    Box region;
+    {
+        const dom::TransportSweeper sweeper(w.d, ang, w.m.grid.h, opt, 1e-11);
+        const std::optional<Box> r = sweeper.region(boxed.kappa, dom::source_rows(boxed));
+        ASSERT_TRUE(r.has_value());
+        region = *r;
+        EXPECT_LT(region.cells(), w.d.global().cells() * 3 / 4);
+        EXPECT_EQ(sweeper.region(filled.kappa, dom::source_rows(filled)), std::nullopt);
+    }
+    for (const char* method : {"dsa", "gmres"}) {
+        auto solve = [&](const dom::BandProblem& p) {
+            dom::TransportSweeper sweeper(w.d, ang, w.m.grid.h, opt, 1e-11);
+            dom::SweepOutput out;
+            const dom::IterationResult r = dom::iterate_band(w.d, sweeper, ang, p, method, 1e-10, 200, out, w.report);
+            EXPECT_TRUE(r.converged) << method;
+            return out;
+        };
+        const dom::SweepOutput a = solve(boxed), b = solve(filled);
+        double v[3] = {0.0, 0.0, 0.0};  // max diff, peak, the peak outside the region (the last sweep's)
+        for_each_cell(w.d.local(), [&](int i, int j, int k) {
+            v[0] = std::max(v[0], std::abs(a.fluence(i, j, k) - b.fluence(i, j, k)));
+            for (int c = 0; c < 3; ++c) v[0] = std::max(v[0], std::abs(a.flux(i, j, k, c) - b.flux(i, j, k, c)));
+            v[1] = std::max(v[1], b.fluence(i, j, k));
+            if (!region.contains(i, j, k)) v[2] = std::max(v[2], a.fluence(i, j, k));
+        });
+        MPI_Allreduce(MPI_IN_PLACE, v, 3, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+        double leak[2] = {0.0, 0.0};
+        for (size_t f = 0; f < 6; ++f) {
+            leak[0] = std::max(leak[0], std::abs(a.leakage[f] - b.leakage[f]));
+            leak[1] = std::max(leak[1], std::abs(b.leakage[f]));
+        }
+        if (test::world_rank() == 0)
+            std::printf("%s: the box's sweeps against the whole domain's: max diff %.3e of peak %.4f (outside the box %.4f), "
+                        "leakage %.3e of %.4f\n", method, v[0], v[1], v[2], leak[0], leak[1]);
+        EXPECT_GT(v[2], 0.05 * v[1]) << method;
+        EXPECT_LE(v[0], 1e-8 * v[1]) << method;
+        EXPECT_LE(leak[0], 1e-8 * leak[1]) << method;
     }
 }
 
