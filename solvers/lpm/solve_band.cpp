@@ -71,8 +71,11 @@ BandResult solve_sources(const Decomposition& d, const Medium& m, const LightTra
         if (E0 == 0.0) continue;
         const std::vector<double>& bf = ang.beam_factors(bo.g, dl.w);
         for_each_cell(own, [&](int i, int j, int k) {
-            // The cell's mean of T (the deposit integrates the source over the cell).
-            const double q = kappa(i, j, k) * bo.albedo * E0 *
+            // The cell's mean of T (the deposit integrates the source over the cell), where the
+            // cell scatters.
+            const double ks = kappa(i, j, k) * bo.albedo;
+            if (ks == 0.0) return;
+            const double q = ks * E0 *
                              light.transmittance_mean(d, m.rho, static_cast<int>(l), bo.sigma_t, m.grid.h, i, j, k);
             if (q == 0.0) return;
             source += q * V;
