@@ -99,7 +99,8 @@ const std::vector<KeyDoc>& scene_key_docs() {
 
         {"camera", "The pinhole camera of the image."},
         {"camera.position",
-         "eye point: fractions of the domain's extent (units = \"domain\") or metres (\"world\")"},
+         "eye point: fractions of the domain's extent (units = \"domain\") or metres (\"world\"); above "
+         "the ground (z > 0) with background.kind = \"ground\""},
         {"camera.look_at", "the point at the image centre, in the units of position"},
         {"camera.up", "the image's up direction; not parallel to look_at - position"},
         {"camera.fov", "vertical field of view, degrees, in (0, 180)"},

@@ -104,15 +104,22 @@ void validate_band_names(const std::vector<BandOptics>& bands) {
 
 }  // namespace
 
+namespace {
+
+// A camera point (position or look_at) in metres.
+Vec3 camera_world(const CameraSpec& c, const GridSpec& g, const Vec3& v) {
+    const double h = g.h();
+    return c.domain_units ? Vec3{v.x * g.n[0] * h, v.y * g.n[1] * h, v.z * g.n[2] * h} : v;
+}
+
+}  // namespace
+
 // The pinhole model of src/render/camera.h, restated on the spec (tests/unit/render/camera_test.cpp
 // checks the two agree).
 bool camera_sees_domain(const CameraSpec& c, const GridSpec& g) {
     const double h = g.h();
     const Vec3 extent{g.n[0] * h, g.n[1] * h, g.n[2] * h};
-    const auto world = [&](const Vec3& v) {
-        return c.domain_units ? Vec3{v.x * extent.x, v.y * extent.y, v.z * extent.z} : v;
-    };
-    const Vec3 position = world(c.position), view = world(c.look_at) - position;
+    const Vec3 position = camera_world(c, g, c.position), view = camera_world(c, g, c.look_at) - position;
     if (!(norm(view) > 0)) return true;
     const Vec3 forward = normalized(view), side = cross(forward, c.up);
     if (!(norm(side) > 1e-9 * norm(c.up))) return true;
@@ -209,6 +216,13 @@ void Scene::validate() const {
                             "[0, {:.4g}] m is outside its field of view (check camera.position, camera.look_at, "
                             "camera.fov and units)",
                             grid.n[0] * h, grid.n[1] * h, grid.n[2] * h));
+        // The ground is an opaque plane at z = 0 drawn from above: a camera under it would see
+        // the medium through it.
+        const double z = camera_world(camera, grid, camera.position).z;
+        require(background.kind != BackgroundSpec::Kind::ground || z > 0.0,
+                fmt::format("camera.position is under the ground (z = {:.4g} m; the ground is the plane z = 0, "
+                            "opaque and lit from above): raise the camera or set background.kind = \"color\"",
+                            z));
     }
     require_bands(background.color, nbands(), "background.color");
     require(background.ground_albedo >= 0 && background.ground_albedo <= 1,

@@ -69,6 +69,8 @@ expect_error "density at cell (5, 1, 1) is nan" "$tmp/nan.toml"
 expect_error "density at cell (4, 5, 4) is -1" "$tmp/neg.toml"
 expect_error 'model.name = "nonsense" is not allowed' "${small[@]}" --set "model.name=\"nonsense\""
 expect_error "looks at nothing" "${small[@]}" --set "camera.look_at=[0.5,-3.0,0.42]"
+expect_error "camera.position is under the ground" "${small[@]}" --set 'background.kind="ground"' \
+    --set "camera.position=[0.5,-1.3,-0.2]"
 # Band names name the HDF5 datasets: refused at load time, not after the solve.
 expect_error 'optics\[1\].name = "r" repeats optics\[0\].name' "${small[@]}" --set 'optics[1].name="r"'
 expect_error 'optics\[0\].name = "a/b" is not a valid band name' "${small[@]}" --set 'optics[0].name="a/b"'
