@@ -370,8 +370,9 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
 
     const fs::path stem = fs::path(scene.output.dir) / scene.output.name;
     report.values()["total_seconds_before_output"] = wall_time() - t_start;
-    // The run's report (collective): the HDF5 file stores it as it stands before the output is
-    // written; the returned (and logged) report is taken again at the end, with the output's time.
+    // The run's report (collective): the HDF5 file stores it as it stands once the fields are
+    // written (so its peak memory counts their write, the output's largest); the returned (and
+    // logged) report is taken again at the end, with the output's times.
     const auto summarize = [&] {
         nlohmann::json summary = report.summarize(d.comm());
         summary["model"] = model->name();
@@ -381,7 +382,6 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
         summary["libraries"] = library_versions();
         return summary;
     };
-    const nlohmann::json summary_before_output = summarize();
     // Every output goes to a temporary name; commit() makes them all final together, so a
     // failed run leaves none under its final name (and no temporary).
     OutputFiles files(d.comm());
@@ -390,7 +390,7 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
         Hdf5Writer out(d, medium.grid, stem.string() + ".h5", files);
         write_fields(out, medium, light, diffuse, d);
         out.write_string_attribute("/scene", "toml", scene_to_toml(scene));
-        out.write_string_attribute("/run", "report", summary_before_output.dump(2));
+        out.write_string_attribute("/run", "report", summarize().dump(2));
         out.close();
         result.hdf5_path = out.path();
     }
