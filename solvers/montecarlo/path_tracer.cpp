@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numeric>
 
 #include "src/core/empty_space.h"
 #include "solvers/montecarlo/forward.h"
@@ -63,6 +64,14 @@ bool enter_domain(const Grid& grid, const GridView& g, const Vec3& x, const Vec3
 
 constexpr int kMaxBands = 64;  // bands per optics group (a radiance per band on the stack)
 
+// A step through [0, n) that visits every index once, far from the next: i -> i stride mod n,
+// stride coprime with n, near n / φ.
+std::int64_t scramble_stride(std::int64_t n) {
+    std::int64_t stride = std::max<std::int64_t>(1, static_cast<std::int64_t>(static_cast<double>(n) * 0.6180339887));
+    while (std::gcd(stride, n) != 1) ++stride;
+    return stride;
+}
+
 }  // namespace
 
 Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
@@ -114,12 +123,34 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
     }
 
     // Per pixel and band: sum and sum of squares of the sample radiance; per pixel: alpha (mean).
-    const std::int64_t pixels = static_cast<std::int64_t>(W) * H, total = pixels * spp;
+    const std::int64_t pixels = static_cast<std::int64_t>(W) * H;
     std::vector<double> acc(static_cast<size_t>(pixels) * nb * 2 + static_cast<size_t>(pixels), 0.0);
     double* alpha = acc.data() + static_cast<size_t>(pixels) * nb * 2;
-    const std::int64_t s0 = total * d.rank() / d.size(), s1 = total * (d.rank() + 1) / d.size();
-    Progress progress("montecarlo image", static_cast<double>(s1 - s0), d.rank() == 0);
-    for (std::int64_t si = s0; si < s1; ++si) {
+    // Tiles of kTile x kTile pixels go to the ranks in a scrambled order: visit v is tile
+    // v stride mod tiles, on rank v mod size. Each rank then gets a like share of the cloud
+    // wherever it sits in the image (contiguous blocks of samples gave one rank the top of the
+    // image), the progress's ETA sees a representative mix of pixels from the start (it assumes
+    // every pixel costs the same), the paths of a tile's neighbouring pixels keep sharing the
+    // voxels in cache (single pixels in a scrambled order ran 1.2-1.5x slower), and each pixel's
+    // sums are made on one rank in sample order: the image is the same for any rank count, bit
+    // for bit.
+    constexpr int kTile = 8;
+    const int tiles_x = (W + kTile - 1) / kTile, tiles_y = (H + kTile - 1) / kTile;
+    const std::int64_t tiles = static_cast<std::int64_t>(tiles_x) * tiles_y, stride = scramble_stride(tiles);
+    // Calls f(x0, x1, y0, y1) for the pixel ranges of this rank's tiles, in its order.
+    auto for_each_tile = [&](auto&& f) {
+        for (std::int64_t v = d.rank(); v < tiles; v += d.size()) {
+            const std::int64_t t = v * stride % tiles;
+            const int x0 = static_cast<int>(t % tiles_x) * kTile, y0 = static_cast<int>(t / tiles_x) * kTile;
+            f(x0, std::min(W, x0 + kTile), y0, std::min(H, y0 + kTile));
+        }
+    };
+    std::int64_t mine = 0;  // this rank's samples
+    for_each_tile([&](int x0, int x1, int y0, int y1) { mine += static_cast<std::int64_t>(x1 - x0) * (y1 - y0) * spp; });
+    Progress progress("montecarlo image", static_cast<double>(mine), d.rank() == 0);
+    std::int64_t done = 0;
+    // Sample si = pixel spp + k of every band group.
+    auto trace_sample = [&](std::int64_t si) {
         const std::int64_t pix = si / spp;
         const int px = static_cast<int>(pix % W), py = static_cast<int>(pix / W);
         for (size_t gi = 0; gi < groups.size(); ++gi) {
@@ -181,8 +212,15 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
                 acc[(static_cast<size_t>(pix) * nb + b) * 2 + 1] += L[q] * L[q];
             }
         }
-        if ((si - s0) % 4096 == 0) progress.update(static_cast<double>(si - s0));
-    }
+        if (++done % 4096 == 0) progress.update(static_cast<double>(done));
+    };
+    for_each_tile([&](int x0, int x1, int y0, int y1) {
+        for (int y = y0; y < y1; ++y)
+            for (int x = x0; x < x1; ++x) {
+                const std::int64_t first = (static_cast<std::int64_t>(y) * W + x) * spp;
+                for (int k = 0; k < spp; ++k) trace_sample(first + k);
+            }
+    });
     progress.finish();
     MPI_Reduce(d.rank() == 0 ? MPI_IN_PLACE : acc.data(), acc.data(), static_cast<int>(acc.size()), MPI_DOUBLE,
                MPI_SUM, 0, d.comm());

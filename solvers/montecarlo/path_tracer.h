@@ -16,10 +16,10 @@
 // leave see nothing (the background is not a light source, as in the forward tracer).
 // alpha = 1 - T along the view ray (first band).
 //
-// Collective over ctx.decomp.comm(): the pixel-sample index range [0, W H spp) is split into
-// contiguous blocks over the ranks; sample s of a band group draws from the Philox stream keyed
-// by (seed, the group's first band, s),
-// so the image is the same for any rank count up to round-off. Per-pixel standard error of
+// Collective over ctx.decomp.comm(): whole pixels go to the ranks in a scrambled order (every
+// rank gets a like share of the cloud; path_tracer.cpp); sample s = pixel spp + k of a band
+// group draws from the Philox stream keyed by (seed, the group's first band, s), so the image
+// is the same for any rank count, bit for bit. Per-pixel standard error of
 // the mean over the samples goes to Image::stderr_rgb. Image on rank 0, empty elsewhere.
 // Background kind "ground" is not modelled here: it is rendered black (logged).
 // Memory per rank: the replicated density (8 B per cell), a 16-byte voxel grid per band group
