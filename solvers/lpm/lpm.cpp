@@ -77,8 +77,9 @@ public:
                                                        offset, &ctx.report, sources);
                 const double total = std::accumulate(r.sweep_seconds.begin(), r.sweep_seconds.end(), 0.0);
                 const double mean = r.sweep_seconds.empty() ? 0.0 : total / static_cast<double>(r.sweep_seconds.size());
+                const std::vector<std::string> terms = term_names(weight, ctx.light.lights, sources.size());
                 solves.push_back({{"bands", band_names},
-                                  {"terms", term_names(weight, ctx.light.lights, sources.size())},
+                                  {"terms", terms},
                                   {"iterations", r.iterations},
                                   {"max_U_relative", r.max_U},
                                   {"seconds_per_map_sweep", mean},
@@ -95,9 +96,10 @@ public:
                                   {"dsa_corrections", r.dsa_corrections},
                                   {"dsa_solver_iterations", r.dsa_solver_iterations}});
                 if (d.rank() == 0)
-                    log::info("lpm {} {}: {} iterations, max U {:.3g} of the first-scatter maximum, {:.3g} s per map "
-                              "sweep, unpropagated {:.3g} of the scattered power",
-                              band_names.size() == 1 ? "band" : "bands", fmt::join(band_names, ", "), r.iterations,
+                    log::info("lpm {} {} ({}): {} iterations, max U {:.3g} of the first-scatter maximum, {:.3g} s per "
+                              "map sweep, unpropagated {:.3g} of the scattered power",
+                              band_names.size() == 1 ? "band" : "bands", fmt::join(band_names, ", "),
+                              fmt::join(terms, ", "), r.iterations,
                               r.max_U.empty() ? 0.0 : r.max_U.back(), mean, r.source > 0 ? r.remaining / r.source : 0.0);
                 // Each band that uses this solve adds it at its scale (owned cells and ghosts:
                 // both results are halo-exchanged).
