@@ -283,46 +283,10 @@ std::ptrdiff_t TransportSweeper::plane_index(int axis, int i, int j, int k) cons
 }
 
 std::optional<Box> TransportSweeper::region(const Field<double>& kappa, const SourceRows& rows) const {
-    const Box& own = d_.local();
-    const Box& g = d_.global();
-    // -lo and hi of the bounding box, so one MAX reduction gives both.
-    std::array<int, 6> ext{};
-    for (int a = 0; a < 3; ++a) {
-        ext[static_cast<size_t>(a)] = -g.hi[a];
-        ext[static_cast<size_t>(3 + a)] = g.lo[a];
-    }
-    auto take = [&](int i, int j, int k) {
-        const int c[3] = {i, j, k};
-        for (size_t a = 0; a < 3; ++a) {
-            ext[a] = std::max(ext[a], -c[a]);
-            ext[3 + a] = std::max(ext[3 + a], c[a] + 1);
-        }
-    };
-    for (int k = own.lo[2]; k < own.hi[2]; ++k)
-        for (int j = own.lo[1]; j < own.hi[1]; ++j) {
-            int lo = rows.lo(j, k), hi = rows.hi(j, k);
-            for (int i = own.lo[0]; i < own.hi[0]; ++i)
-                if (kappa(i, j, k) > 0.0) {
-                    lo = std::min(lo, i);
-                    hi = std::max(hi, i + 1);
-                }
-            if (hi > lo) {
-                take(lo, j, k);
-                take(hi - 1, j, k);
-            }
-        }
-    MPI_Allreduce(MPI_IN_PLACE, ext.data(), 6, MPI_INT, MPI_MAX, d_.comm());
+    const Box b = bounding_box(d_, [&](int i, int j, int k) { return kappa(i, j, k) > 0.0 || rows.contains(i, j, k); });
     for (bool r : bc_.reflective)
         if (r) return std::nullopt;
-    Box b;
-    for (int a = 0; a < 3; ++a) {
-        b.lo[a] = -ext[static_cast<size_t>(a)];
-        b.hi[a] = ext[static_cast<size_t>(3 + a)];
-    }
-    if (b.empty()) return Box{g.lo, g.lo};
-    for (int a = 0; a < 3; ++a)
-        if (d_.periodic(a)) b = b.with_range(a, g.lo[a], g.hi[a]);
-    if (b == g) return std::nullopt;
+    if (b == d_.global()) return std::nullopt;
     return b;
 }
 
