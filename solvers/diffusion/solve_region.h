@@ -11,7 +11,7 @@
 
 namespace nimbus::diffusion {
 
-// Collective over d.comm() (two MPI_Allreduce). Empty box when no cell is full anywhere.
+// Collective over d.comm() (one MPI_Allreduce, bounding_box). Empty box when no cell is full anywhere.
 SolveRegion find_solve_region(const Decomposition& d, const DiffusionProblem& p, int margin);
 
 // Default cap on the transport mean free path (m): half the smallest extent of the full cells'

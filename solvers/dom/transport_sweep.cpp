@@ -150,9 +150,12 @@ void group_moments(const Box& own, const Box& act, const AngularSet& ang, const 
                 std::fill_n(out.fluence.data() + c, nx, 0.0);
                 std::fill_n(out.flux.data() + 3 * c, 3 * nx, 0.0);
             }
-            // The row's swept cells [a0, a1) (none outside act), which hold its span [lo, hi).
+            // The row's swept cells [a0, a1) (none outside act), which hold its span [lo, hi) (a
+            // row without one has lo = hi = own.lo[0]: moved to a0, or the cells of own before
+            // act, which this sweep did not compute, would be reduced).
             const bool swept = j >= act.lo[1] && j < act.hi[1] && k >= act.lo[2] && k < act.hi[2];
             const int a0 = swept ? act.lo[0] - own.lo[0] : 0, a1 = swept ? act.hi[0] - own.lo[0] : 0;
+            const int lo_s = hi > lo ? lo : a0, hi_s = hi > lo ? hi : a0;
             for (size_t o = 0; o < slots.size() && a1 > a0; ++o) {
                 const Field<double>& psi = *slots[o].psi;
                 const double* p = &psi(own.lo[0], j, k);
@@ -163,9 +166,9 @@ void group_moments(const Box& own, const Box& act, const AngularSet& ang, const 
                         apply_moments(op, b - a, p + a * ps, ps, phi_a, out.fluence.data() + c + a,
                                       out.flux.data() + 3 * (c + a));
                 };
-                reduce(fluence_ops[o], a0, lo, phi);
-                reduce(ops[o], lo, hi, phi + q * nmom);
-                reduce(fluence_ops[o], hi, a1, phi);
+                reduce(fluence_ops[o], a0, lo_s, phi);
+                reduce(ops[o], lo_s, hi_s, phi + q * nmom);
+                reduce(fluence_ops[o], hi_s, a1, phi);
             }
             q += hi - lo;
         }
@@ -284,10 +287,12 @@ std::ptrdiff_t TransportSweeper::plane_index(int axis, int i, int j, int k) cons
 
 std::optional<Box> TransportSweeper::region(const Field<double>& kappa, const SourceRows& rows) const {
     const Box b = bounding_box(d_, [&](int i, int j, int k) { return kappa(i, j, k) > 0.0 || rows.contains(i, j, k); });
-    for (bool r : bc_.reflective)
-        if (r) return std::nullopt;
-    if (b == d_.global()) return std::nullopt;
+    if (any_mirror() || b == d_.global()) return std::nullopt;
     return b;
+}
+
+bool TransportSweeper::any_mirror() const {
+    return std::any_of(bc_.reflective.begin(), bc_.reflective.end(), [](bool r) { return r; });
 }
 
 void TransportSweeper::reset_reflections() {
@@ -469,14 +474,12 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
     // The cells swept: act, this rank's part of the region (SweepSource::region).
     const Box region = src.region ? *src.region : d_.global();
     const Box act = own.intersect(region);
-    bool mirrors = false;
-    for (bool r : bc_.reflective) mirrors = mirrors || r;
     bool spans_inside = true;  // the source rows lie in the region
     for (int k = own.lo[2]; k < own.hi[2]; ++k)
         for (int j = own.lo[1]; j < own.hi[1]; ++j)
             if (rows.hi(j, k) > rows.lo(j, k) && !(act.contains(rows.lo(j, k), j, k) && act.contains(rows.hi(j, k) - 1, j, k)))
                 spans_inside = false;
-    check_collective(d_.comm(), !src.region || (!mirrors && spans_inside),  // else a caller's bug
+    check_collective(d_.comm(), !src.region || (!any_mirror() && spans_inside),  // else a caller's bug
                      "dom: a sweep confined to a region needs every source cell inside it and no reflective face");
     out.phi.resize(packed);  // overwritten by the first group_moments
     if (out.fluence.owned() != own) {

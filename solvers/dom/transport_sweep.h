@@ -71,9 +71,6 @@
 // Collective over d.comm(). Not thread-safe. The Decomposition and AngularSet must outlive it.
 #pragma once
 
-#include <mpi.h>
-
-#include <algorithm>
 #include <array>
 #include <initializer_list>
 #include <map>
@@ -83,6 +80,7 @@
 
 #include "solvers/dom/angular_set.h"
 #include "solvers/sweep/sweep.h"
+#include "src/core/bounding_box.h"
 #include "src/core/decomposition.h"
 #include "src/core/field.h"
 
@@ -193,36 +191,6 @@ struct SweepTiming {
     std::int64_t fixups = 0;      // diamond: cell-directions that needed the negative-flux fix-up
 };
 
-// Collective. The bounding box (global cells) of the cells (i, j, k) of d.local() where
-// in(i, j, k), over all ranks, whole along periodic axes; empty when there are none.
-template <class In>
-Box bounding_box(const Decomposition& d, In&& in) {
-    const Box& g = d.global();
-    std::array<int, 6> ext{};  // -lo and hi, so that one MAX reduction gives both
-    for (int a = 0; a < 3; ++a) {
-        ext[static_cast<size_t>(a)] = -g.hi[a];
-        ext[static_cast<size_t>(3 + a)] = g.lo[a];
-    }
-    for_each_cell(d.local(), [&](int i, int j, int k) {
-        if (!in(i, j, k)) return;
-        const int c[3] = {i, j, k};
-        for (size_t a = 0; a < 3; ++a) {
-            ext[a] = std::max(ext[a], -c[a]);
-            ext[3 + a] = std::max(ext[3 + a], c[a] + 1);
-        }
-    });
-    MPI_Allreduce(MPI_IN_PLACE, ext.data(), 6, MPI_INT, MPI_MAX, d.comm());
-    Box b;
-    for (int a = 0; a < 3; ++a) {
-        b.lo[a] = -ext[static_cast<size_t>(a)];
-        b.hi[a] = ext[static_cast<size_t>(3 + a)];
-    }
-    if (b.empty()) return Box{g.lo, g.lo};
-    for (int a = 0; a < 3; ++a)
-        if (d.periodic(a)) b = b.with_range(a, g.lo[a], g.hi[a]);
-    return b;
-}
-
 // What the sweeper needs of the decomposition: periodic x/y unsplit, z not periodic. Throws
 // Error on every rank alike; run by the model's pre-flight check and by the constructor.
 void check_sweep_decomposition(const Decomposition& d);
@@ -274,6 +242,7 @@ public:
     }
 
 private:
+    bool any_mirror() const;  // a reflective face
     void set_upwind_ghosts(Field<double>& psi, int o);
     // The cells just upwind of the part act of a region (SweepSource::region) that no rank
     // sweeps: vacuum, or the sky radiance for downward directions on sweeps that carry it.

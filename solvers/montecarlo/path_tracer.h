@@ -16,8 +16,8 @@
 // leave see nothing (the background is not a light source, as in the forward tracer).
 // alpha = 1 - T along the view ray (first band).
 //
-// Collective over ctx.decomp.comm(): whole pixels go to the ranks in a scrambled order (every
-// rank gets a like share of the cloud; path_tracer.cpp); sample s = pixel spp + k of a band
+// Collective over ctx.decomp.comm(): 8 x 8 tiles of pixels go to the ranks in a scrambled order
+// (every rank gets a like share of the cloud; path_tracer.cpp); sample s = pixel spp + k of a band
 // group draws from the Philox stream keyed by (seed, the group's first band, s), so the image
 // is the same for any rank count, bit for bit. Per-pixel standard error of
 // the mean over the samples goes to Image::stderr_rgb. Image on rank 0, empty elsewhere.

@@ -175,12 +175,11 @@ SweepStats run(const Decomposition& d, Field<double>& psi, const Octant& o, cons
 // Collective over d.comm(): every rank passes the same octant list, at most kMaxOctants (more
 // throws Error on every rank before any message: their tags would run into LPM's 950).
 // kernel(q, i, j, k) computes owned cell (i, j, k) of psi[q]. Ghost planes at the domain
-// boundary are the caller's, as in run(). Memory: the upstream and downstream planes of every
-// octant in flight (one slab face each way, x ncomp).
+// boundary are the caller's, as in run(), and so are the cells just upwind of `region` (as in
+// run()). Memory: the upstream and downstream planes of every octant in flight (one slab face
+// each way, x ncomp).
 constexpr int kMaxOctants = 8;
 
-//
-// region: as in run().
 template <class Kernel>
 SweepStats run_octants(const Decomposition& d, const std::vector<Field<double>*>& psi, const std::vector<Octant>& octants,
                        const SweepOptions& opt, Kernel&& kernel, const Box& region) {

@@ -216,12 +216,13 @@ void Scene::validate() const {
                             "[0, {:.4g}] m is outside its field of view (check camera.position, camera.look_at, "
                             "camera.fov and units)",
                             grid.n[0] * h, grid.n[1] * h, grid.n[2] * h));
-        // The ground is an opaque plane at z = 0 drawn from above: a camera under it would see
-        // the medium through it.
+        // The ground is the plane z = 0 seen from above (the ray caster shades it, Monte Carlo's
+        // image leaves it black): a camera under it saw the medium through it.
         const double z = camera_world(camera, grid, camera.position).z;
         require(background.kind != BackgroundSpec::Kind::ground || z > 0.0,
-                fmt::format("camera.position is under the ground (z = {:.4g} m; the ground is the plane z = 0, "
-                            "opaque and lit from above): raise the camera or set background.kind = \"color\"",
+                fmt::format("camera.position is under the ground (z = {:.4g} m; with background.kind = \"ground\" "
+                            "the ground is the plane z = 0, seen from above): raise the camera or set "
+                            "background.kind = \"color\"",
                             z));
     }
     require_bands(background.color, nbands(), "background.color");

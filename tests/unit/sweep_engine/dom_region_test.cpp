@@ -24,19 +24,20 @@ namespace {
 
 constexpr Int3 kCells{10, 7, 12};
 
-// A medium that absorbs, scatters and is lit only inside `box`, in vacuum: kappa, moments and a
-// first-collision amplitude there, zero elsewhere.
+// A medium that absorbs inside `box` and scatters and is lit only inside `lit` (the whole box
+// when empty), in vacuum: kappa, moments and a first-collision amplitude there, zero elsewhere.
 struct BoxedMedium {
     Field<double> kappa, moments, amp;
     SourceRows rows;
     std::vector<double> packed;  // the moments of the rows' cells (SweepSource::moments)
-    BoxedMedium(const Decomposition& d, const AngularSet& ang, const Box& box) {
+    BoxedMedium(const Decomposition& d, const AngularSet& ang, const Box& box, const Box& lit = {}) {
         const Box& own = d.local();
         kappa = Field<double>(own, 0, 1, 0.0);
         moments = Field<double>(own, 0, ang.nmom, 0.0);
         amp = Field<double>(own, 0, 1, 0.0);
         for_each_cell(own.intersect(box), [&](int i, int j, int k) {
             kappa(i, j, k) = 0.3 + 0.05 * ((i + 2 * j + 3 * k) % 7);
+            if (!lit.empty() && !lit.contains(i, j, k)) return;
             for (int m = 0; m < ang.nmom; ++m) moments(i, j, k, m) = (m == 0 ? 1.0 : 0.1 / (1 + m)) * (1.0 + 0.1 * i);
             amp(i, j, k) = std::exp(-0.2 * (kCells[2] - k));
         });
@@ -131,12 +132,16 @@ TEST(DomRegion, SweepOfTheRegionIsTheWholeDomainsInsideIt) {
     const AngularSet ang = make_angular_set(level_symmetric(4), 3);
     // z 3..9 crosses every rank boundary of 2 and 3 slabs (6; 4, 8); 6..10 starts on the 2-slab
     // boundary and misses rank 0 there; 0..4 ends on the 3-slab boundary and misses the others.
+    // The first box scatters only in part of it: its other rows absorb but have no source, so
+    // their span is empty while the region's x range starts past the first cell.
     const Box boxes[] = {{{2, 1, 3}, {8, 6, 9}}, {{0, 2, 6}, {7, 7, 10}}, {{3, 0, 0}, {10, 5, 4}}};
+    const Box lit[] = {{{4, 2, 4}, {7, 4, 8}}, {}, {}};
     for (const Int3 dims : {Int3{0, 0, 0}, Int3{test::world_size(), 1, 1}})  // z slabs; x split
         for (SpatialScheme scheme : {SpatialScheme::step, SpatialScheme::diamond})
             for (int overlap : {1, 2, 8})
                 for (bool sky : {false, true})
-                    for (const Box& box : boxes) {
+                    for (size_t b = 0; b < std::size(boxes); ++b) {
+                        const Box& box = boxes[b];
                         const Decomposition d(MPI_COMM_WORLD, kCells, dims);
                         const std::string what = d.describe() + ", " +
                                                  (scheme == SpatialScheme::step ? "step" : "diamond") + ", overlap " +
@@ -145,7 +150,7 @@ TEST(DomRegion, SweepOfTheRegionIsTheWholeDomainsInsideIt) {
                         sweep::SweepOptions opt;
                         opt.tile_rows = 3;
                         opt.octant_overlap = overlap;
-                        const BoxedMedium m(d, ang, box);
+                        const BoxedMedium m(d, ang, box, lit[b]);
                         TransportSweeper whole = sweeper(d, ang, opt, scheme, sky), part = sweeper(d, ang, opt, scheme, sky);
                         const std::optional<Box> region = part.region(m.kappa, m.rows);
                         ASSERT_EQ(region, std::optional<Box>(box)) << what;
