@@ -345,6 +345,7 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
                                 fmt::format("{}, iteration {}, relative change {:.2e}", what, history.size(),
                                             history.back()));
             };
+            const dom::SweepTiming before = sweeper.timing();
             const dom::IterationResult res = dom::iterate_band(d, sweeper, ang, p, opt_.iteration, opt_.tolerance,
                                                                opt_.max_iterations, sw, ctx.report, monitor);
             entry["converged"] = res.converged;
@@ -360,10 +361,13 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
             iter_seconds += seconds;
             unknown_iterations += static_cast<double>(d.global().cells()) * ang.quadrature.size() * res.iterations;
             entry["dsa_linear_iterations"] = res.dsa_linear_iterations;
-            entry["sweeps"] = res.sweeps;
-            // Share of the grid the sweeps covered (the medium's box, then the whole domain once).
-            entry["swept_cell_fraction"] =
-                res.sweeps > 0 ? res.swept_cells / (res.sweeps * static_cast<double>(d.global().cells())) : 0.0;
+            // The solve's sweeps and the share of the grid they covered (the medium's box, then the
+            // whole domain once).
+            const int sweeps = sweeper.timing().sweeps - before.sweeps;
+            entry["sweeps"] = sweeps;
+            entry["swept_cell_fraction"] = sweeps > 0 ? (sweeper.timing().swept_cells - before.swept_cells) /
+                                                            (sweeps * static_cast<double>(d.global().cells()))
+                                                      : 0.0;
             entry["delta_m_f"] = p.phase.f;
             entry["seconds"] = seconds;
             record_energy_balance(d, m.grid.cell_volume(), p, sw, entry);

@@ -285,9 +285,6 @@ IterationResult gmres_band(const Decomposition& d, TransportSweeper& sweeper, co
     }
     external.region = nullptr;
     sweeper.sweep(external, out);
-    const double region_cells = static_cast<double>(region ? region->cells() : d.global().cells());
-    res.sweeps = c.sweeps + 2;  // the operator's, b's and the last
-    res.swept_cells = (c.sweeps + 1) * region_cells + static_cast<double>(d.global().cells());
     res.seconds = MPI_Wtime() - t0;
     return res;
 }

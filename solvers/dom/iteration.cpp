@@ -87,13 +87,10 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
     // one last sweep of the whole domain gives the fields.
     const std::optional<Box> region = sweeper.region(p.kappa, rows);
     src.region = region ? &*region : nullptr;
-    const double region_cells = static_cast<double>(region ? region->cells() : d.global().cells());
     std::vector<double> norms;  // of the fluence, per iteration (blew_up)
     for (int it = 1; it <= max_iterations; ++it) {
         make_source_moments(p, chi, rows, phi.data(), s.data(), true);
         sweeper.sweep(src, out);
-        ++res.sweeps;
-        res.swept_cells += region_cells;
         if (dsa) {
             bool finite = true;
             {
@@ -171,8 +168,6 @@ IterationResult iterate_band(const Decomposition& d, TransportSweeper& sweeper, 
         make_source_moments(p, chi, rows, phi.data(), s.data(), true);
         src.region = nullptr;
         sweeper.sweep(src, out);
-        ++res.sweeps;
-        res.swept_cells += static_cast<double>(d.global().cells());
     } else {
         std::swap(phi, out.phi);
     }

@@ -35,8 +35,6 @@ struct IterationResult {
     int iterations = 0;
     std::vector<double> history;     // relative change after each iteration
     int dsa_linear_iterations = 0;   // PFMG V-cycles, summed over the DSA solves
-    int sweeps = 0;                  // transport sweeps
-    double swept_cells = 0;          // cells those sweeps covered, summed (TransportSweeper::region)
     double seconds = 0;              // total iteration time (sweeps, moments, DSA)
 };
 

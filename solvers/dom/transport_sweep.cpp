@@ -481,6 +481,8 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
                 spans_inside = false;
     check_collective(d_.comm(), !src.region || (!any_mirror() && spans_inside),  // else a caller's bug
                      "dom: a sweep confined to a region needs every source cell inside it and no reflective face");
+    ++timing_.sweeps;
+    timing_.swept_cells += static_cast<double>(region.intersect(d_.global()).cells());
     out.phi.resize(packed);  // overwritten by the first group_moments
     if (out.fluence.owned() != own) {
         out.fluence = Field<double>(own, 0, 1, 0.0);

@@ -189,6 +189,8 @@ struct SweepTiming {
     double moment_seconds = 0;    // moments to directions (source) and back (reduction)
     int periodic_passes = 0;      // extra layer passes of the periodic iteration
     std::int64_t fixups = 0;      // diamond: cell-directions that needed the negative-flux fix-up
+    int sweeps = 0;               // sweeps made
+    double swept_cells = 0;       // global cells they covered (the region's, or the domain's), summed
 };
 
 // What the sweeper needs of the decomposition: periodic x/y unsplit, z not periodic. Throws
