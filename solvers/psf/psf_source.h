@@ -17,9 +17,10 @@
 // paper's exp(-(c/b) l) = exp(-∫ c ds) along the two-segment path (c/b = 1/albedo is uniform).
 // Sample spacing (Fig. 9): step_growth × max(2h, 2w), the diameter of the blur sphere projected
 // onto the view ray (perpendicular case), with w of the sun's (first light term's) full path at
-// the step, l = sigma_s (tau_view + tau_rho_0(x)), S = s_view + s2_0(x), band 0, and never finer
-// than 2h = w_1, the blur width of the finest blurred pyramid level; the cheap floor uses w of
-// the view leg alone. Both depend only on the step and its view depths,
+// the step, l = sigma_s (tau_view + tau_rho_0(x)), S = s_view + s2_0(x), the smallest over the
+// bands that scatter (so the points depend neither on the bands' order nor on a band that does
+// not scatter), and never finer than 2h = w_1, the blur width of the finest blurred pyramid
+// level; the cheap floor uses w of the view leg alone. Both depend only on the step and its view depths,
 // which keeps the sample points independent of the decomposition. step_growth = 0 samples
 // every step.
 #pragma once

@@ -301,6 +301,47 @@ TEST(PsfModel, ImageIndependentOfRanksAndBrighterThanSingleScattering) {
     EXPECT_LT(std::abs(sum_fine - sum_dense), std::abs(sum_psf - sum_dense));
 }
 
+// A band's image is its own: the view-ray sample points (psf_source.h) are set by the bands that
+// scatter, whatever their order, so permuting the bands permutes the channels, and a band that
+// does not scatter changes nothing in the others. (Band 0 alone set them before: a first band
+// of sigma_t = 0 changed another band's image by 18% of its peak in a QA case.) Bands not
+// named r, g, b map to the channels in their order; early termination, which looks at every
+// band, is off.
+TEST(PsfModel, BandImagesDoNotDependOnTheBandsOrderNorOnABandThatDoesNotScatter) {
+    Scene s = cloud_scene();
+    s.render.early_termination = 0.0;
+    const BandOptics u{"u", 1.0, 0.99, 0.85}, v{"v", 1.0, 0.99, 0.85}, w{"w", 1.1, 0.98, 0.8};
+    s.bands = {u, v, w};
+    const ModelRun uvw = run_model(MPI_COMM_WORLD, s, "psf");
+    Scene p = s;  // the same bands as w, u, v
+    p.bands = {w, u, v};
+    p.sun.irradiance = {0.85, 1.0, 0.95};
+    p.sky.radiance = {0.09, 0.03, 0.05};
+    const ModelRun wuv = run_model(MPI_COMM_WORLD, p, "psf");
+    Scene n = s;  // u's place taken by a band that does not scatter
+    n.bands = {BandOptics{"n", 0.0, 0.99, 0.85}, v, w};
+    const ModelRun nvw = run_model(MPI_COMM_WORLD, n, "psf");
+    if (rank() != 0) return;
+    // Channel c of image a against channel cb of image b, relative to b's channel peak.
+    auto channel_diff = [](const Image& a, int ca, const Image& b, int cb) {
+        double worst = 0.0, peak = 0.0;
+        for (size_t i = 0; i < b.rgba.size(); i += 4) {
+            peak = std::max(peak, static_cast<double>(std::abs(b.rgba[i + static_cast<size_t>(cb)])));
+            worst = std::max(worst, static_cast<double>(std::abs(a.rgba[i + static_cast<size_t>(ca)] -
+                                                                 b.rgba[i + static_cast<size_t>(cb)])));
+        }
+        EXPECT_GT(peak, 0.0);
+        return worst / peak;
+    };
+    const double order[3] = {channel_diff(wuv.image, 1, uvw.image, 0), channel_diff(wuv.image, 2, uvw.image, 1),
+                             channel_diff(wuv.image, 0, uvw.image, 2)};
+    const double beside[2] = {channel_diff(nvw.image, 1, uvw.image, 1), channel_diff(nvw.image, 2, uvw.image, 2)};
+    std::printf("  psf bands: permuted %.2e %.2e %.2e, beside a non-scattering band %.2e %.2e (of the peak)\n",
+                order[0], order[1], order[2], beside[0], beside[1]);
+    for (double d : order) EXPECT_LE(d, 1e-6);
+    for (double d : beside) EXPECT_LE(d, 1e-6);
+}
+
 // The light pass and the psf model's equivalent fluence of scene s on w (collective).
 DiffuseSolution psf_fluence(const Scene& s, World& w) {
     Report report;
