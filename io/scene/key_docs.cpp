@@ -61,8 +61,9 @@ const std::vector<KeyDoc>& scene_key_docs() {
          "value at the centre (>= 0); the ellipsoids add, capped at 1, times medium.density"},
 
         {"optics",
-         "One table per colour band (at least one; 1 or 3 with an image: gray or r, g, b); a "
-         "per-band value elsewhere is one number for every band or one per band, in this order."},
+         "One table per colour band (at least one; 1 or 3 with an image: gray, or R, G, B in this "
+         "order, by name when named r, g, b or red, green, blue); a per-band value elsewhere is one "
+         "number for every band or one per band, in this order."},
         {"optics.name",
          "band name: unique, not empty, no '/' or ':'; names the band's HDF5 datasets"},
         {"optics.sigma_t", "extinction per unit density, 1/m (>= 0): kappa = rho × sigma_t"},

@@ -366,6 +366,16 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
             image = render_image(RenderInputs{scene, medium, light, diffuse}, d, report);
         }
         check_finite_image(image, d.comm());
+        std::vector<std::string> names;
+        for (const BandOptics& b : medium.bands) names.push_back(b.name);
+        if (names.size() == 3 && rgb_band_of_channel(names) != std::array<int, 3>{0, 1, 2}) {
+            const std::array<int, 3> band = rgb_band_of_channel(names);
+            std::string to;  // the channel of each band, in the scene's order
+            for (int b = 0; b < 3; ++b)
+                to += std::string(to.empty() ? "" : ", ") + "RGB"[std::find(band.begin(), band.end(), b) - band.begin()];
+            log::info("image: the bands {} go to the channels {} by their names", fmt::join(names, ", "), to);
+        }
+        order_channels_by_band_name(image, names);
     }
 
     const fs::path stem = fs::path(scene.output.dir) / scene.output.name;

@@ -3,6 +3,7 @@
 // outputs appear only under their final names, and analytic checks hold at pipeline level.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <filesystem>
 
@@ -108,6 +109,36 @@ TEST(Pipeline, BeerLambertInTheWrittenFields) {
         EXPECT_NEAR(t.values[q], std::exp(-kappa * depth), 1e-6);
         EXPECT_NEAR(f.values[q], 2.0 * std::exp(-kappa * depth), 2e-6);
     }
+}
+
+// Three bands named r, g, b go to the image's channels R, G, B by name, in whatever order the
+// scene lists them (a QA case: bands b, r, g put band b in the channel R).
+TEST(Pipeline, ImageChannelsFollowTheBandNames) {
+    auto scene = [](const std::string& dir, const std::array<int, 3>& order) {
+        Scene s = small_scene(dir);
+        const std::vector<BandOptics> bands = s.bands;
+        const std::vector<double> sun{1.0, 0.5, 0.2}, sky{0.03, 0.05, 0.09}, back{0.1, 0.2, 0.3};
+        s.sun.irradiance.clear(), s.sky.radiance.clear(), s.background.color.clear(), s.bands.clear();
+        for (int b : order) {
+            const auto q = static_cast<size_t>(b);
+            s.bands.push_back(bands[q]);
+            s.sun.irradiance.push_back(sun[q]);
+            s.sky.radiance.push_back(sky[q]);
+            s.background.color.push_back(back[q]);
+        }
+        return s;
+    };
+    const RunResult rgb = run_pipeline(MPI_COMM_WORLD, scene(scratch("rgb"), {0, 1, 2}));
+    const RunResult brg = run_pipeline(MPI_COMM_WORLD, scene(scratch("brg"), {2, 0, 1}));
+    if (test::world_rank() != 0) return;
+    ASSERT_EQ(read_string_attribute(brg.hdf5_path, "/scene", "toml").find("name = \"b\""),
+              read_string_attribute(brg.hdf5_path, "/scene", "toml").find("name = "));  // b listed first
+    const Image a = read_exr(rgb.exr_path), b = read_exr(brg.exr_path);
+    std::vector<double> va(a.rgba.begin(), a.rgba.end()), vb(b.rgba.begin(), b.rgba.end());
+    EXPECT_LT(rel_diff(vb, va), 1e-6);
+    double red_minus_blue = 0.0;  // the channels differ, so a swap would show
+    for (size_t p = 0; p < a.rgba.size(); p += 4) red_minus_blue = std::max(red_minus_blue, double(a.rgba[p] - a.rgba[p + 2]));
+    EXPECT_GT(red_minus_blue, 0.05);
 }
 
 TEST(Pipeline, FailedRunLeavesNoOutputAndEveryRankThrows) {
