@@ -12,6 +12,7 @@
 // depends on what the run before it left in the heap (at 192³ the first model setup after the
 // bare solve took 0.145 s, the next ones 0.06 s, as the bare one), so single runs are noisy.
 // Prints a markdown table on rank 0; times are the max over ranks.
+#include <fmt/format.h>
 #include <mpi.h>
 
 #include <algorithm>
@@ -109,6 +110,20 @@ int main(int argc, char** argv) {
         MediumSpec spec;
         if (medium == "smooth") spec.noise_amplitude = 0.0;
         else if (medium != "cumulus") throw Error("BENCH_MEDIUM must be cumulus or smooth");
+        // BENCH_OCTAVES, BENCH_NOISE_SCALE: the edge noise's octaves (default 4) and feature size
+        // (grid fractions, default 0.12), to see how the cloud's roughness drives the iterations.
+        auto env_number = [](const char* name, double lo, double hi, bool integer, double fallback) {
+            const char* v = std::getenv(name);
+            if (!v) return fallback;
+            char* end = nullptr;
+            const double x = std::strtod(v, &end);
+            if (end == v || *end != '\0' || !(x >= lo && x <= hi) || (integer && x != static_cast<int>(x)))
+                throw Error(fmt::format("{} must be {} in [{}, {}], not '{}'", name, integer ? "an integer" : "a number",
+                                        lo, hi, v));
+            return x;
+        };
+        spec.noise_octaves = static_cast<int>(env_number("BENCH_OCTAVES", 1, 8, true, spec.noise_octaves));
+        spec.noise_scale = env_number("BENCH_NOISE_SCALE", 0.01, 1.0, false, spec.noise_scale);
         fill_procedural_density(spec, d, m.rho);
         m.bands = {BandOptics{"gray", 0.05, 0.9, 0.85}};
         const std::vector<DirectionalLight> lights = {
