@@ -21,6 +21,7 @@
 #include "src/core/error.h"
 #include "src/core/halo.h"
 #include "src/core/mpi_counts.h"
+#include "src/core/mpi_io_path.h"
 #include "src/scene/medium.h"
 
 namespace nimbus {
@@ -39,6 +40,12 @@ void check_file(const MediumSpec& spec, MPI_Comm comm, std::int64_t raw_bytes) {
             msg = fmt::format("medium.kind = \"{}\" needs medium.file", to_string(spec.kind));
         } else if (!fs::is_regular_file(spec.file, ec)) {
             msg = fmt::format("{}: density file not found", spec.file);
+        } else if (const std::string abs = fs::absolute(spec.file, ec).lexically_normal().string();
+                   abs.size() > kMaxMpiIoPath) {
+            msg = fmt::format("{}: the density file's path is {} characters long, more than the {} nimbus can "
+                              "open (Open MPI's MPI-IO aborts on file paths of about 245): move it, or link it "
+                              "from a shorter path",
+                              spec.file, abs.size(), kMaxMpiIoPath);
         } else if (raw_bytes >= 0) {
             const auto size = static_cast<std::int64_t>(fs::file_size(spec.file, ec));
             if (ec || size != raw_bytes)

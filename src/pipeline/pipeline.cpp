@@ -21,6 +21,7 @@
 #include "src/core/error.h"
 #include "src/core/interrupt_cleanup.h"
 #include "src/core/log.h"
+#include "src/core/mpi_io_path.h"
 #include "src/render/raycaster.h"
 #include "src/scene/emission.h"
 
@@ -52,13 +53,13 @@ private:
     std::vector<fs::path> created_;  // outermost first
 };
 
-// Open MPI's MPI-IO (its shared-file-pointer components, queried by every MPI_File_open)
-// overflows a fixed buffer on file paths of about 245 characters and aborts the run (Debian 12's
-// 4.1; a QA finding: exit 134, created folders left behind). The longest path a run opens is the
-// XDMF or HDF5 temporary, <dir>/<name>.xdmf.<pid>-<8 hex>.tmp: the absolute <dir>/<name> is
-// kept to kMaxOutputStem characters, which leaves that temporary at most 230. Checked before
+// MPI-IO aborts on long file paths (src/core/mpi_io_path.h; a QA finding: exit 134, created
+// folders left behind). The longest path a run opens is the XDMF or HDF5 temporary,
+// <dir>/<name>.xdmf.<pid>-<8 hex>.tmp: the absolute <dir>/<name> is kept to kMaxOutputStem
+// characters, which leaves that temporary (at most 26 more) within kMaxMpiIoPath. Checked before
 // any folder is made; every rank decides alike (the same scene and working directory).
 constexpr size_t kMaxOutputStem = 200;
+static_assert(kMaxOutputStem + 26 <= kMaxMpiIoPath);
 
 void check_output_path_length(MPI_Comm comm, const Scene& scene) {
     std::error_code ec;

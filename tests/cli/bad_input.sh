@@ -120,6 +120,15 @@ long=$(printf 'd%.0s' $(seq 1 120))
 out=$(timeout 120 "$mpiexec" -n "$np" "$nimbus" run "${small[@]}" --out "$tmp/long/$long/$long" 2>&1); code=$?
 if [ $code -ne 0 ] && [ $code -ne 124 ] && echo "$out" | grep -q "nimbus: error: output path '.*' is [0-9]* characters long, more than the 200" &&
    [ ! -e "$tmp/long" ]; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: long output path (exit $code)"; echo "$out" | tail -3; fi
+# A density file whose path MPI-IO would abort on: refused by name, in run and in info, before
+# any output folder is made (it aborted with exit 134 and left the folder).
+mkdir -p "$tmp/long_in/$long/$long"
+/usr/bin/python3 -c "import sys; open(sys.argv[1], 'wb').write(bytes(4 * 512))" "$tmp/long_in/$long/$long/d.raw"
+expect_error "the density file's path is [0-9]* characters long, more than the 230 nimbus can open" \
+  "$tmp/raw.toml" --set "medium.file=\"$tmp/long_in/$long/$long/d.raw\""
+[ ! -e "$tmp/out" ] && pass=$((pass + 1)) || { fail=$((fail + 1)); echo "FAIL: long density path left $tmp/out"; }
+SUB=info expect_error "the density file's path is [0-9]* characters long" \
+  "$tmp/raw.toml" --set "medium.file=\"$tmp/long_in/$long/$long/d.raw\""
 # model psf's light volumes (64 at most): info says it, before any run.
 SUB=info expect_error "model psf: 65 light terms need 65 light volumes, more than the 64 supported; lower sky.directions" \
   "${small[@]}" --set 'model.name="psf"' --set "sky.directions=64"
