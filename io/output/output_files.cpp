@@ -92,7 +92,7 @@ void OutputFiles::commit() {
     if (rank_ == 0) {
         const interrupt_cleanup::Deferred hold;  // a signal waits until the renames are done
         message = replace_finals();
-        if (message.empty()) interrupt_cleanup::clear();  // committed: nothing left to remove
+        if (message.empty()) interrupt_cleanup::committed();  // nothing left to remove
     }
     check_collective(comm_, message.empty(), message);
 }

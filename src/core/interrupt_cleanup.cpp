@@ -30,6 +30,7 @@ std::atomic<int> g_deferring{0}, g_pending{0};
 // landing on another thread while the first cleans up, must not end the process half-way.
 std::atomic<int> g_ending{0};
 std::atomic<int> g_speaks{0};  // this process reports the cleanup on stderr
+std::atomic<int> g_committed{0};  // the run's outputs are in place (committed())
 static_assert(std::atomic<int>::is_always_lock_free);
 
 bool add(const std::string& path, bool folder) {
@@ -50,8 +51,9 @@ void remove_all() {
     if (g_speaks.load(std::memory_order_relaxed) == 0) return;  // rank 0 says what happened
     static const char kRemoved[] = "nimbus: interrupted: removed this run's temporary files and new folders\n";
     static const char kNothing[] = "nimbus: interrupted before writing any output: the output folder is as it was\n";
-    [[maybe_unused]] const ssize_t w =
-        n > 0 ? ::write(STDERR_FILENO, kRemoved, sizeof kRemoved - 1) : ::write(STDERR_FILENO, kNothing, sizeof kNothing - 1);
+    static const char kDone[] = "nimbus: interrupted after this run's outputs were written: they are complete\n";
+    const char* text = g_committed.load(std::memory_order_acquire) ? kDone : n > 0 ? kRemoved : kNothing;
+    [[maybe_unused]] const ssize_t w = ::write(STDERR_FILENO, text, std::strlen(text));
 }
 
 // Cleans up, then ends the process by `sig` (its exit status says which): the default action
@@ -96,7 +98,15 @@ void install(bool speaks) {
 bool add_file(const std::string& path) { return add(path, false); }
 bool add_folder(const std::string& path) { return add(path, true); }
 
-void clear() { g_count.store(0, std::memory_order_release); }
+void clear() {
+    g_count.store(0, std::memory_order_release);
+    g_committed.store(0, std::memory_order_release);
+}
+
+void committed() {
+    g_count.store(0, std::memory_order_release);
+    g_committed.store(1, std::memory_order_release);
+}
 
 // A signal process-directed (kill, mpiexec) may land on any thread, so masking this one would
 // not hold it back: the handler checks the flag instead.

@@ -8,7 +8,9 @@
 //                                                 // rank 0 says on stderr what was cleaned up
 //   interrupt_cleanup::add_file("out/a.h5.123.tmp");
 //   interrupt_cleanup::add_folder("out");         // removed only if empty, after the files
-//   interrupt_cleanup::clear();                   // committed: nothing to remove any more
+//   interrupt_cleanup::committed();               // the outputs are in place: nothing to remove,
+//                                                 // and a signal says they are complete
+//   interrupt_cleanup::clear();                   // a fresh start: nothing to remove, nothing written
 //
 // The handler only calls unlink(2), rmdir(2) and raise(3), which are async-signal-safe; then
 // the signal takes its default action (the exit status says so). A signal the process was
@@ -29,6 +31,7 @@ void install(bool speaks);
 bool add_file(const std::string& path);
 bool add_folder(const std::string& path);
 void clear();
+void committed();
 
 // While one exists, a handled signal is only noted, and acted on (cleanup, then the default
 // action) when it is destroyed: for the renames that replace a previous run's files, which must

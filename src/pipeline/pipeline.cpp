@@ -35,22 +35,26 @@ namespace fs = std::filesystem;
 // then are removed (fs::remove does not remove a folder with files), deepest first.
 class CreatedFolders {
 public:
+    CreatedFolders() { interrupt_cleanup::clear(); }  // this run has written nothing yet
     void add(const fs::path& p) {
         created_.push_back(p);
         interrupt_cleanup::add_folder(p.string());  // a signal does not run the destructor
     }
     void keep() {
         created_.clear();
-        interrupt_cleanup::clear();  // the outputs are committed: nothing left to remove
+        kept_ = true;
+        interrupt_cleanup::committed();  // nothing left to remove; a later signal says so
     }
     ~CreatedFolders() {
+        if (kept_) return;
         std::error_code ec;
         for (auto it = created_.rbegin(); it != created_.rend(); ++it) fs::remove(*it, ec);
-        interrupt_cleanup::clear();  // cleaned up (or committed) already
+        interrupt_cleanup::clear();  // cleaned up: the folder is as it was
     }
 
 private:
     std::vector<fs::path> created_;  // outermost first
+    bool kept_ = false;
 };
 
 // MPI-IO aborts on long file paths (src/core/mpi_io_path.h; a QA finding: exit 134, created

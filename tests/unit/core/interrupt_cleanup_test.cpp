@@ -3,6 +3,7 @@
 // runs in a forked child (no MPI there: it only registers, signals itself and dies), so the
 // test process keeps its own signal dispositions.
 #include <gtest/gtest.h>
+#include <fcntl.h>
 #include <pthread.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -11,6 +12,7 @@
 #include <atomic>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <thread>
 #include <vector>
@@ -140,6 +142,46 @@ TEST(InterruptCleanup, DeferredHoldsTheSignalUntilItEnds) {
     EXPECT_EQ(WTERMSIG(status), SIGTERM);
     EXPECT_TRUE(fs::exists(marker)) << "the signal was not held";
     EXPECT_FALSE(fs::exists(s.file)) << "the held signal did not clean up";
+}
+
+// What rank 0 says on stderr: a signal after committed() (the outputs are in place, the paths
+// forgotten) says they are complete, also when it came during the renames (a Deferred that
+// ends after committed()); after clear() it says nothing was written; with paths registered,
+// that they were removed. A QA finding: a signal after the commit said "interrupted before
+// writing any output" while the run's files had replaced the previous ones.
+TEST(InterruptCleanup, TheMessageSaysWhetherTheOutputsWereWritten) {
+    enum class Step { committed, committed_while_deferred, committed_then_cleared, registered };
+    auto said = [](Step step) {
+        Scratch s("nimbus_interrupt_message");
+        const fs::path err = s.dir / "stderr.txt";
+        const int status = in_child([&] {
+            ::signal(SIGTERM, SIG_DFL);
+            const int fd = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+            ::dup2(fd, STDERR_FILENO);
+            interrupt_cleanup::install(true);
+            interrupt_cleanup::add_file(s.file.string());
+            if (step == Step::committed_while_deferred) {
+                const interrupt_cleanup::Deferred hold;
+                ::raise(SIGTERM);
+                interrupt_cleanup::committed();
+            } else if (step != Step::registered) {
+                interrupt_cleanup::committed();
+                if (step == Step::committed_then_cleared) interrupt_cleanup::clear();
+                ::raise(SIGTERM);
+            } else {
+                ::raise(SIGTERM);
+            }
+            ::_exit(3);
+        });
+        EXPECT_TRUE(WIFSIGNALED(status)) << status;
+        EXPECT_EQ(fs::exists(s.file), step != Step::registered);
+        std::ifstream in(err);
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    };
+    EXPECT_NE(said(Step::committed).find("after this run's outputs were written: they are complete"), std::string::npos);
+    EXPECT_NE(said(Step::committed_while_deferred).find("they are complete"), std::string::npos);
+    EXPECT_NE(said(Step::committed_then_cleared).find("before writing any output"), std::string::npos);
+    EXPECT_NE(said(Step::registered).find("removed this run's temporary files"), std::string::npos);
 }
 
 TEST(InterruptCleanup, IgnoredSignalStaysIgnored) {
