@@ -115,7 +115,13 @@ void apply_overrides(toml::value& root, const std::vector<std::string>& override
                                      arr.size(), arr.size() == 1 ? "y" : "ies"));
                 path += fmt::format("[{}]", part.index);
                 if (last) {
-                    arr[static_cast<size_t>(part.index)] = value;
+                    // A new array, located at this override (its checks name the --set, not the
+                    // file's line): the file's elements and the new one.
+                    toml::value changed;
+                    parse_value("[]", name, changed);
+                    for (size_t q = 0; q < arr.size(); ++q)
+                        changed.as_array().push_back(q == static_cast<size_t>(part.index) ? value : arr[q]);
+                    *cur = std::move(changed);
                     break;
                 }
                 cur = &arr[static_cast<size_t>(part.index)];

@@ -62,6 +62,10 @@ TEST(SceneOverrides, BadValueNamesTheOverride) {
     expect_override_error({"grid.n=[0,4,4]"}, {"grid.nx = 0", "zero-size"});
     expect_override_error({"sun.enabled=yes"}, {"sun.enabled must be true or false"});
     expect_override_error({"render.mode=scatter"}, {"render.mode", "did you mean 'scattering'?"});
+    // One entry of an array: the error is the --set's, not the line of the array in the file
+    // (a QA finding: "default.toml:40: sky.radiance = -1 ...").
+    expect_override_error({"sky.radiance[1]=-1"}, {"<built-in default>: --set sky.radiance[1]=-1: sky.radiance = -1"});
+    expect_override_error({"grid.n[2]=8.5"}, {"<built-in default>: --set grid.n[2]=8.5: grid.n must be"});
 }
 
 TEST(SceneOverrides, MalformedOverrides) {
