@@ -168,12 +168,34 @@ bool named_unit(const GridSpec& g) {
            (g.unit == "cm" && g.unit_scale == 0.01) || (g.unit == "mm" && g.unit_scale == 0.001);
 }
 
+// Text that can stand in a TOML comment: valid UTF-8 without control characters; any other
+// byte becomes '?' (a scene file's path may hold a newline or a byte that is not UTF-8, and the
+// stored scene could not be read back: a QA finding).
+std::string comment_safe(const std::string& text) {
+    std::string out;
+    for (size_t i = 0; i < text.size();) {
+        const auto c = static_cast<unsigned char>(text[i]);
+        const size_t n = c < 0x80 ? 1 : (c >> 5) == 0x6 ? 2 : (c >> 4) == 0xE ? 3 : (c >> 3) == 0x1E ? 4 : 0;
+        bool ok = n > 0 && i + n <= text.size() && (n > 1 || (c >= 0x20 && c != 0x7F)) && c != 0xC0 &&
+                  c != 0xC1 && c <= 0xF4 && !(c == 0xED && static_cast<unsigned char>(text[i + 1]) >= 0xA0);
+        for (size_t k = 1; ok && k < n; ++k) ok = (static_cast<unsigned char>(text[i + k]) >> 6) == 0x2;
+        if (ok) {
+            out.append(text, i, n);
+            i += n;
+        } else {
+            out += '?';
+            ++i;
+        }
+    }
+    return out;
+}
+
 }  // namespace
 
 std::string scene_to_toml(const Scene& s, TomlComments comments) {
     TomlEmitter w(comments);
     w.comment(fmt::format("nimbus scene: every setting of the run (written by nimbus; source: {})",
-                          s.source));
+                          comment_safe(s.source)));
     w.key("title", str(s.title));
 
     const GridSpec& g = s.grid;

@@ -33,11 +33,13 @@ namespace {
 
 // The scene the run that wrote `file` stored (its /scene attribute), read for its grid and bands
 // only: the medium is read as a box, so an imported density need not still be where the run
-// found it. Empty when the file has no readable scene (written by another program).
+// found it. Empty when the file has no readable scene (written by another program), with a
+// warning: the cell sizes are then not compared.
 std::optional<Scene> stored_scene(const std::string& file) {
     try {
         return load_scene_string(read_string_attribute(file, "/scene", "toml"), file, {"medium.kind=\"box\""});
-    } catch (const Error&) {
+    } catch (const Error& e) {
+        log::warn("'{}': its stored scene cannot be read, so its cell size is not compared: {}", file, e.what());
         return std::nullopt;
     }
 }

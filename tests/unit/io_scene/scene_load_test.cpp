@@ -276,6 +276,22 @@ TEST(SceneLoad, EveryFieldRoundTrips) {
     expect_round_trip(s);
 }
 
+// The scene file's path goes into a comment of the stored scene: a newline or a byte that is not
+// UTF-8 in it made the stored scene unreadable (a QA finding). Such bytes become '?'; valid
+// UTF-8 stays.
+TEST(SceneLoad, StoredSceneOfAnOddlyNamedFileRoundTrips) {
+    Scene s = default_scene({});
+    for (const std::string name : {"a\nb.toml", "bad\xff.toml", "tab\there\x7f.toml", "cut\xe2\x82.toml",
+                                   "\xed\xa0\x80.toml", "caf\xc3\xa9 \xe2\x98\x81.toml"}) {
+        s.source = name;
+        expect_round_trip(s);
+    }
+    s.source = "caf\xc3\xa9 \xe2\x98\x81.toml";
+    EXPECT_NE(scene_to_toml(s).find("source: caf\xc3\xa9 \xe2\x98\x81.toml)"), std::string::npos);
+    s.source = "a\nb\xff.toml";
+    EXPECT_NE(scene_to_toml(s).find("source: a?b?.toml)"), std::string::npos);
+}
+
 TEST(SceneLoad, SourcesCoverTheCellsWhoseCentresAreInside) {
     const std::string text = "[grid]\nn = [10, 8, 6]\ncell_size = 2\nunit = \"km\"\n[[optics]]\n"
                              "[model]\nname = \"dom\"\n"
