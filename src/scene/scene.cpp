@@ -100,6 +100,16 @@ void validate_band_names(const std::vector<BandOptics>& bands) {
                                 "HDF5 datasets fields/<field>/<name>)",
                                 key, name, c));
     }
+    // ParaView sees fields/<field>/<name> as the XDMF attribute <field>_<name>: fluence_diffuse of
+    // band "stderr_X" and fluence_diffuse_stderr of band "X" would both be
+    // fluence_diffuse_stderr_X, and ParaView shows one of them only (a QA finding).
+    for (size_t b = 0; b < bands.size(); ++b)
+        for (size_t c = 0; c < bands.size(); ++c)
+            require(bands[b].name != "stderr_" + bands[c].name,
+                    fmt::format("optics[{}].name = \"{}\" clashes with optics[{}].name = \"{}\": in ParaView "
+                                "(the XDMF file) fluence_diffuse of the one and fluence_diffuse_stderr of the other "
+                                "would have the same name; rename one",
+                                b, bands[b].name, c, bands[c].name));
 }
 
 }  // namespace

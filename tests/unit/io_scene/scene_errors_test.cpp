@@ -175,6 +175,10 @@ TEST(SceneErrors, BandNames) {
     expect_error(edit("name = \"gray\"", "name = \".\""), "name = \".\"", {"optics[0].name = \".\" is not a valid"});
     expect_error(edit("name = \"gray\"", "name = \"..\""), "name = \"..\"", {"optics[0].name = \"..\" is not a valid"});
     expect_error(edit("name = \"gray\"", "name = \"a\\tb\""), "name = \"a", {"optics[0].name contains a control character"});
+    // fields/fluence_diffuse/stderr_gray and fields/fluence_diffuse_stderr/gray would be one
+    // attribute, fluence_diffuse_stderr_gray, in ParaView.
+    expect_error(kBase + "[[optics]]\nname = \"stderr_gray\"\nsigma_t = 2.0\n", "name = \"stderr_gray\"",
+                 {"optics[1].name = \"stderr_gray\" clashes with optics[0].name = \"gray\""});
     // Overrides are located at what the user typed.
     try {
         load_scene_string(two, "bad.toml", {"optics[1].name=\"gray\""});
