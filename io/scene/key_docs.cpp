@@ -137,7 +137,7 @@ const std::vector<KeyDoc>& scene_key_docs() {
         {"model.name", "single | diffusion | dom | lpm | psf | montecarlo"},
 
         {"model.montecarlo", "Forward light tracing reference (solvers/montecarlo/README.md)."},
-        {"model.montecarlo.photons", "photon paths over all lights and sources, >= 1"},
+        {"model.montecarlo.photons", "photon paths over all lights and sources, in [1, 1e14]"},
         {"model.montecarlo.time_budget", "seconds of tracing at most (0 = no limit)"},
         {"model.montecarlo.target_rel_error",
          "stop once the total diffuse power's relative standard error is below this; in [0, 1), "

@@ -10,7 +10,10 @@
 namespace nimbus {
 
 void MonteCarloOptions::validate() const {
-    if (photons < 1) throw Error(fmt::format("model.montecarlo.photons = {} must be >= 1", photons));
+    if (photons < 1 || photons > kMaxPhotons)
+        throw Error(fmt::format("model.montecarlo.photons = {} must be in [1, {:.0e}] (10^14 paths take months at "
+                                "10^7 collisions/s; time_budget or target_rel_error stop a run earlier)",
+                                photons, static_cast<double>(kMaxPhotons)));
     if (!(time_budget >= 0 && std::isfinite(time_budget))) throw Error("model.montecarlo.time_budget must be >= 0 seconds");
     if (!(target_rel_error >= 0 && target_rel_error < 1))
         throw Error("model.montecarlo.target_rel_error must be in [0, 1)");

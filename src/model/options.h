@@ -25,6 +25,9 @@ concept maybe_const = std::same_as<std::remove_const_t<O>, T>;
 
 // Forward light tracing reference (solvers/montecarlo).
 struct MonteCarloOptions {
+    // At most 10^14: a time budget splits the photons into at most 2^30 batches and traces two of
+    // them at least, ~10^5 photons each then (beyond, the budget could not hold: a QA finding).
+    static constexpr std::int64_t kMaxPhotons = 100'000'000'000'000;
     std::int64_t photons = 1'000'000;   // photon paths to trace (all lights together)
     double time_budget = 0.0;           // seconds, 0 = no limit
     double target_rel_error = 0.0;      // stop when the relative standard error of the total

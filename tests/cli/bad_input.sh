@@ -84,6 +84,9 @@ expect_error "the grid does not fit in memory" --set "grid.n=[65536,65536,65536]
 # Refusals that need the density (model checks before the light pass): info says them too.
 expect_error "sources\[0\] covers no cell with density" "$tmp/dark_source.toml"
 expect_error "exceeds model.montecarlo.max_replicated_memory_gb" "${small[@]}" --set "model.montecarlo.max_replicated_memory_gb=0.000001"
+# More photons than a time budget can split (it ran for hours past a 3 s budget at 9e18).
+SUB=info expect_error 'model.montecarlo.photons = 900000000000000 must be in \[1, 1e+14\]' "${small[@]}" \
+  --set 'model.name="montecarlo"' --set "model.montecarlo.photons=900000000000000" --set "model.montecarlo.time_budget=3"
 expect_error "with iteration = 'dsa' diverges on cells this thick" "${small[@]}" --set 'model.name="dom"' --set 'model.dom.scheme="diamond"' --set "optics[0].sigma_t=1.0"
 unset SUB
 # model.diffusion.petsc_options: one line naming the option, with PETSc's message and without
