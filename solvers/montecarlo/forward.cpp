@@ -404,8 +404,14 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
             in_layout.batches = layout;
             const StopEta eta =
                 eta_to_stop(in_layout, done, now - t_layout, now - t_start, res.rel_error);
-            progress.update(static_cast<double>(opt.photons) * done / layout, eta.seconds,
-                            eta.until);
+            // The share of the way to the earliest stop, in time: of the photons when they stop
+            // the run, of the budget or the target's projected time when those do (a QA finding:
+            // "1.2% (4.3 s elapsed, ETA 1.7 s at the time budget)").
+            const double elapsed = now - t_start;
+            const double share = std::isfinite(eta.seconds) && elapsed + eta.seconds > 0
+                                     ? elapsed / (elapsed + eta.seconds)
+                                     : static_cast<double>(done) / layout;
+            progress.update(static_cast<double>(opt.photons) * share, eta.seconds, eta.until);
         }
     }
     progress.finish();

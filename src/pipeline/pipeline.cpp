@@ -292,6 +292,7 @@ Scene load_run_scene(MPI_Comm comm, const RunOptions& opts) {
                                         : load_scene_file(opts.scene_path, opts.overrides);
         if (!opts.out_dir.empty()) scene.output.dir = opts.out_dir;
     });
+    check_output_path_length(comm, scene);  // so that `nimbus info` refuses what a run would
     // A --set of another model's option is valid (scene files carry options for several models)
     // but has no effect on this run: say so, since it was typed for this run.
     for (const std::string& o : opts.overrides) {

@@ -248,6 +248,7 @@ void Scene::validate() const {
             "render.early_termination must be in [0, 1)");
     require_bands(render.emission_color, nbands(), "render.emission_color");
     require(render.exposure > 0 && std::isfinite(render.exposure), "render.exposure must be > 0");
+    require(!output.dir.empty(), "output.dir must not be empty: use \".\" for the working folder");
     require(!output.name.empty(), "output.name must not be empty: it names the output files <name>.h5, .xdmf, .exr");
     require(output.name.find_first_of("/:") == std::string::npos,
             fmt::format("output.name = \"{}\" must be a plain file name without '/' or ':' (the XDMF file "

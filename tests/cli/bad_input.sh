@@ -123,6 +123,9 @@ long=$(printf 'd%.0s' $(seq 1 120))
 out=$(timeout 120 "$mpiexec" -n "$np" "$nimbus" run "${small[@]}" --out "$tmp/long/$long/$long" 2>&1); code=$?
 if [ $code -ne 0 ] && [ $code -ne 124 ] && echo "$out" | grep -q "nimbus: error: output path '.*' is [0-9]* characters long, more than the 200" &&
    [ ! -e "$tmp/long" ]; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: long output path (exit $code)"; echo "$out" | tail -3; fi
+SUB=info expect_error "output path '.*' is [0-9]* characters long, more than the 200" "${small[@]}" \
+  --set "output.dir=\"$tmp/long/$long\"" --set "output.name=\"$long\""
+SUB=info expect_error 'output.dir must not be empty: use "." for the working folder' "${small[@]}" --set 'output.dir=""'
 # A density file whose path MPI-IO would abort on: refused by name, in run and in info, before
 # any output folder is made (it aborted with exit 134 and left the folder).
 mkdir -p "$tmp/long_in/$long/$long"
