@@ -33,10 +33,15 @@ public:
     // cloud (measured 306 bytes per cell at 3 bands; the solve covers only the cloud's box, so
     // this is an upper bound elsewhere). The flux limiter adds 21 values per cell: its copy of
     // the problem for one right-hand side (6), the previous U (1), lambda and its target (2),
-    // the Anderson history (12: 5 pairs of differences, the last iterate and residual).
+    // the Anderson history (12: 5 pairs of differences, the last iterate and residual). SMG's
+    // plane solvers and PETSc's copy of the system with BoomerAMG's hierarchy take more: measured
+    // on the default cloud (1 rank, peak memory against pfmg-pcg's 292 MiB): smg-pcg +100 MiB,
+    // smg +94, petsc +144, i.e. 23 and 33 values per cell (a QA finding: the check counted
+    // pfmg-pcg's alone).
     double memory_bytes(const Scene& s, const Decomposition& d, int) const override {
         const double limiter = opt_.flux_limiter == "none" ? 0.0 : 21.0;
-        return 8.0 * (26.0 + 4.0 * s.nbands() + limiter) * static_cast<double>(d.local().cells());
+        const double solver = opt_.solver.rfind("smg", 0) == 0 ? 23.0 : opt_.solver == "petsc" ? 33.0 : 0.0;
+        return 8.0 * (26.0 + 4.0 * s.nbands() + limiter + solver) * static_cast<double>(d.local().cells());
     }
     // solver = petsc: the decomposition and model.diffusion.petsc_options (linear_solve.h).
     // Warns of settings that run but rarely mean what they say.

@@ -25,9 +25,18 @@ public:
 
     // Per local cell: the 6k² coarse bins of unpropagated light U (8 bytes each) and ~186 bytes of
     // fluence, deposits, coefficients and halo planes; measured on the default cloud (slopes
-    // between 48x48x32 and 96x96x64): 234 bytes at k = 1, 622 at k = 3 (p = 3; p does not matter).
+    // between 48x48x32 and 96x96x64): 234 bytes at k = 1, 622 at k = 3 (p = 3). Per map plane, a
+    // ray per direction (p² doubles per cell of the plane, phi), and on the lateral maps two ray
+    // slot buffers of R² rays per cell and direction (R = refinement): 8 p² (nx ny + 2 R² max(nx,
+    // ny) nz) bytes of the rank's box. (Measured, 2 ranks: 96x96x8 at p = 24 peaks 42 MiB above
+    // p = 6, the term gives 43; 48x48x32 at R = 4 5.7 MiB above R = 1, the term 6.3; 32x32x24 at
+    // p = 40 15 MiB above the per-cell part, the term 22. A QA finding: p and R were left out.)
     double memory_bytes(const Scene&, const Decomposition& d, int) const override {
-        return (186.0 + 8.0 * 6 * opt_.k * opt_.k) * static_cast<double>(d.local().cells());
+        const Box& b = d.local();
+        const double p2 = static_cast<double>(opt_.p) * opt_.p, r2 = static_cast<double>(opt_.refinement) * opt_.refinement;
+        const double planes = static_cast<double>(b.size(0)) * b.size(1) +
+                              2.0 * r2 * std::max(b.size(0), b.size(1)) * static_cast<double>(b.size(2));
+        return (186.0 + 8.0 * 6 * opt_.k * opt_.k) * static_cast<double>(b.cells()) + 8.0 * p2 * planes;
     }
     // Before the light pass: what the map sweeps need of the decomposition (and odd p's warning).
     void check_layout(const Decomposition& d) const override { check_decomposition(d); }

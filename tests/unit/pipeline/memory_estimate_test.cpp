@@ -47,9 +47,21 @@ TEST(MemoryEstimate, EachModelAddsItsStorage) {
     const Decomposition d(MPI_COMM_WORLD, {48, 48, 32});
     EXPECT_DOUBLE_EQ(s4 - estimate("dom", [](Scene& s) { s.model.dom.octant_overlap = 1; }),
                      8.0 * 7 * 2 * 3 * static_cast<double>(d.local().cells()));  // S4: 3 directions per octant
-    // LPM: 6k² coarse bins per cell.
+    // LPM: 6k² coarse bins per cell, and p² rays per cell of its map planes (R² per slot on the
+    // lateral maps): 8 p² (nx ny + 2 R² max(nx, ny) nz) bytes of the rank's box.
     EXPECT_GT(estimate("lpm", [](Scene& s) { s.model.lpm.p = 3, s.model.lpm.k = 3; }),
               estimate("lpm", [](Scene& s) { s.model.lpm.p = 3, s.model.lpm.k = 1; }));
+    const double planes = 48.0 * 48 + 2.0 * 48 * d.local().size(2);
+    EXPECT_DOUBLE_EQ(estimate("lpm", [](Scene& s) { s.model.lpm.p = 24; }) - estimate("lpm", [](Scene& s) { s.model.lpm.p = 6; }),
+                     8.0 * (24 * 24 - 6 * 6) * planes);
+    EXPECT_DOUBLE_EQ(estimate("lpm", [](Scene& s) { s.model.lpm.refinement = 4; }) - estimate("lpm"),
+                     8.0 * 36 * 2 * (16 - 1) * 48 * d.local().size(2));
+    // Diffusion: SMG's plane solvers and PETSc's copy with its AMG hierarchy.
+    const double pfmg = estimate("diffusion");
+    EXPECT_DOUBLE_EQ(estimate("diffusion", [](Scene& s) { s.model.diffusion.solver = "smg-pcg"; }) - pfmg,
+                     8.0 * 23 * static_cast<double>(d.local().cells()));
+    EXPECT_DOUBLE_EQ(estimate("diffusion", [](Scene& s) { s.model.diffusion.solver = "petsc"; }) - pfmg,
+                     8.0 * 33 * static_cast<double>(d.local().cells()));
     // The figure says what it covers.
     const std::string what = [] {
         Scene s = default_scene();
