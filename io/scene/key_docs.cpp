@@ -65,7 +65,8 @@ const std::vector<KeyDoc>& scene_key_docs() {
          "order, by name when named r, g, b or red, green, blue); a per-band value elsewhere is one "
          "number for every band or one per band, in this order."},
         {"optics.name",
-         "band name: unique, not empty, no '/' or ':'; names the band's HDF5 datasets"},
+         "band name: unique, not empty, no '/' or ':', not stderr_<another band's name>; names the "
+         "band's HDF5 datasets"},
         {"optics.sigma_t", "extinction per unit density, 1/m (>= 0): kappa = rho × sigma_t"},
         {"optics.albedo", "single-scattering albedo, in [0, 1]"},
         {"optics.g", "Henyey-Greenstein asymmetry in (-1, 1): 0 isotropic, > 0 forward"},
@@ -220,7 +221,8 @@ const std::vector<KeyDoc>& scene_key_docs() {
 
         {"output", "The files <dir>/<name>.h5 (with .xdmf), .exr and .png."},
         {"output.dir",
-         "output folder, from the working directory (not the scene file's); created if missing"},
+         "output folder, from the working directory (not the scene file's); created if missing; "
+         "not empty (\".\" for the working directory)"},
         {"output.name", "file name stem: not empty, no '/' or ':'"},
         {"output.hdf5", "write <name>.h5 (fields, effective scene, run report) and .xdmf"},
         {"output.image", "render and write the image, <name>.exr and its preview <name>.png "

@@ -116,7 +116,8 @@ void apply_overrides(toml::value& root, const std::vector<std::string>& override
                 path += fmt::format("[{}]", part.index);
                 if (last) {
                     // A new array, located at this override (its checks name the --set, not the
-                    // file's line): the file's elements and the new one.
+                    // file's line): the file's elements and the new one. A check of the whole
+                    // array (its length, a per-band count) is then located at the --set too.
                     toml::value changed;
                     parse_value("[]", name, changed);
                     for (size_t q = 0; q < arr.size(); ++q)

@@ -168,17 +168,23 @@ bool named_unit(const GridSpec& g) {
            (g.unit == "cm" && g.unit_scale == 0.01) || (g.unit == "mm" && g.unit_scale == 0.001);
 }
 
-// Text that can stand in a TOML comment: valid UTF-8 without control characters; any other
-// byte becomes '?' (a scene file's path may hold a newline or a byte that is not UTF-8, and the
-// stored scene could not be read back: a QA finding).
+// Text that can stand in a TOML comment: tab, printable ASCII and well-formed UTF-8 (no overlong
+// form, surrogate or code point beyond U+10FFFF, as toml11 checks); any other byte becomes '?' (a
+// scene file's path may hold a newline or a byte that is not UTF-8, and the stored scene could
+// not be read back: a QA finding).
 std::string comment_safe(const std::string& text) {
     std::string out;
+    auto at = [&](size_t i) { return i < text.size() ? static_cast<unsigned char>(text[i]) : 0u; };
     for (size_t i = 0; i < text.size();) {
-        const auto c = static_cast<unsigned char>(text[i]);
-        const size_t n = c < 0x80 ? 1 : (c >> 5) == 0x6 ? 2 : (c >> 4) == 0xE ? 3 : (c >> 3) == 0x1E ? 4 : 0;
-        bool ok = n > 0 && i + n <= text.size() && (n > 1 || (c >= 0x20 && c != 0x7F)) && c != 0xC0 &&
-                  c != 0xC1 && c <= 0xF4 && !(c == 0xED && static_cast<unsigned char>(text[i + 1]) >= 0xA0);
-        for (size_t k = 1; ok && k < n; ++k) ok = (static_cast<unsigned char>(text[i + k]) >> 6) == 0x2;
+        const unsigned c = at(i);
+        size_t n = 0;
+        unsigned lo = 0x80, hi = 0xBF;  // the second byte's range
+        if (c == 0x09 || (c >= 0x20 && c < 0x7F)) n = 1;
+        else if (c >= 0xC2 && c <= 0xDF) n = 2;
+        else if (c >= 0xE0 && c <= 0xEF) n = 3, lo = c == 0xE0 ? 0xA0 : 0x80, hi = c == 0xED ? 0x9F : 0xBF;
+        else if (c >= 0xF0 && c <= 0xF4) n = 4, lo = c == 0xF0 ? 0x90 : 0x80, hi = c == 0xF4 ? 0x8F : 0xBF;
+        bool ok = n > 0 && i + n <= text.size() && (n == 1 || (at(i + 1) >= lo && at(i + 1) <= hi));
+        for (size_t k = 2; ok && k < n; ++k) ok = at(i + k) >= 0x80 && at(i + k) <= 0xBF;
         if (ok) {
             out.append(text, i, n);
             i += n;

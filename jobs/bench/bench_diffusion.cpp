@@ -100,6 +100,7 @@ int main(int argc, char** argv) {
     // the effect of the rough cloud edge on the iteration count from that of N.
     const char* medium_env = std::getenv("BENCH_MEDIUM");
     const std::string medium = medium_env ? medium_env : "cumulus";
+    std::string label = medium;  // the tables' name of the medium
     int status = 0;
     try {
         Decomposition d(MPI_COMM_WORLD, {N, N, N});
@@ -124,6 +125,9 @@ int main(int argc, char** argv) {
         };
         spec.noise_octaves = static_cast<int>(env_number("BENCH_OCTAVES", 1, 8, true, spec.noise_octaves));
         spec.noise_scale = env_number("BENCH_NOISE_SCALE", 0.01, 1.0, false, spec.noise_scale);
+        const MediumSpec defaults;
+        if (medium != "smooth" && (spec.noise_octaves != defaults.noise_octaves || spec.noise_scale != defaults.noise_scale))
+            label = fmt::format("{} (noise: {} octaves, scale {:g})", medium, spec.noise_octaves, spec.noise_scale);
         fill_procedural_density(spec, d, m.rho);
         m.bands = {BandOptics{"gray", 0.05, 0.9, 0.85}};
         const std::vector<DirectionalLight> lights = {
@@ -190,7 +194,7 @@ int main(int argc, char** argv) {
         }
         const double floor = median(bare_setup) + median(bare_solve);
         if (rank == 0) {
-            std::printf("\n### diffusion, %s %d³, %d rank(s), tolerance 1e-8, medians of %d\n\n", medium.c_str(), N,
+            std::printf("\n### diffusion, %s %d³, %d rank(s), tolerance 1e-8, medians of %d\n\n", label.c_str(), N,
                         size, reps);
             std::printf("| N | ranks | solver | region cells | iterations | true residual | assemble s | setup s | solve s | (assemble + setup + solve) / bare | diffusion phase s | / bare | sources / region / flux / bands s |\n");
             std::printf("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");

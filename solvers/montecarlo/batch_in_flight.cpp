@@ -58,9 +58,10 @@ void BatchInFlight::trace(int batch, int layout, std::int64_t k0, std::int64_t k
             const std::int64_t N = p_.n_light[l];
             if (N == 0) continue;
             const VolumeEmitter* emitter = l < nl ? nullptr : &p_.emitters[l - nl];
-            // In 128 bits: batch N overflows 64 once N > 2^33 and the batches are split to 2^30.
-            const auto lo = static_cast<std::int64_t>(static_cast<__int128>(batch) * N / layout),
-                       hi = static_cast<std::int64_t>(static_cast<__int128>(batch + 1) * N / layout);
+            // b N / layout, exactly, without b N (which overflows once N > 2^33 and the batches
+            // are split towards 2^30).
+            auto part = [&](std::int64_t b) { return N / layout * b + N % layout * b / layout; };
+            const std::int64_t lo = part(batch), hi = part(batch + 1);
             if (hi <= lo) continue;
             const std::int64_t from = lo + offset(hi - lo, k0), to = lo + offset(hi - lo, k1);
             // Photon power per band (W) in this batch's estimate, and the fluence scale

@@ -281,6 +281,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
         return batch_split(most[0], opt.time_budget - most[1], layout, P, max_layout);
     };
     Progress progress("montecarlo", static_cast<double>(opt.photons), d.rank() == 0);
+    const double t_progress = wall_time();  // what the progress line counts as elapsed
     std::vector<Counters> all_counters;  // [batch][band], of the batches kept, summed over ranks
     std::vector<double> round_sums;      // a round's counters and flags, summed over the ranks
     const size_t per_batch = static_cast<size_t>(nb) * ncounters;
@@ -404,11 +405,11 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
             in_layout.batches = layout;
             const StopEta eta =
                 eta_to_stop(in_layout, done, now - t_layout, now - t_start, res.rel_error);
-            // The share of the way to the earliest stop, in time: of the photons when they stop
-            // the run, of the budget or the target's projected time when those do (a QA finding:
-            // "1.2% (4.3 s elapsed, ETA 1.7 s at the time budget)").
-            const double elapsed = now - t_start;
-            const double share = std::isfinite(eta.seconds) && elapsed + eta.seconds > 0
+            // The share of the way to the earliest stop: of the batches when the photon count
+            // stops the run, else of the time to the budget or the target's projected stop (a
+            // QA finding: "1.2% (4.3 s elapsed, ETA 1.7 s at the time budget)").
+            const double elapsed = now - t_progress;
+            const double share = eta.until != "photon count" && std::isfinite(eta.seconds) && elapsed + eta.seconds > 0
                                      ? elapsed / (elapsed + eta.seconds)
                                      : static_cast<double>(done) / layout;
             progress.update(static_cast<double>(opt.photons) * share, eta.seconds, eta.until);

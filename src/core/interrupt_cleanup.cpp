@@ -103,9 +103,9 @@ void clear() {
     g_committed.store(0, std::memory_order_release);
 }
 
-void committed() {
-    g_count.store(0, std::memory_order_release);
+void committed() {  // the flag first: a signal in between says "complete", which is then true
     g_committed.store(1, std::memory_order_release);
+    g_count.store(0, std::memory_order_release);
 }
 
 // A signal process-directed (kill, mpiexec) may land on any thread, so masking this one would

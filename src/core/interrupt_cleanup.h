@@ -12,7 +12,8 @@
 //                                                 // and a signal says they are complete
 //   interrupt_cleanup::clear();                   // a fresh start: nothing to remove, nothing written
 //
-// The handler only calls unlink(2), rmdir(2) and raise(3), which are async-signal-safe; then
+// The handler only calls unlink(2), rmdir(2), write(2), strlen(3), sigaction(2) and raise(3),
+// which are async-signal-safe; then
 // the signal takes its default action (the exit status says so). A signal the process was
 // started with ignored (nohup) stays ignored.
 // Paths are kept in a fixed table (kMaxPaths of kMaxPathBytes); beyond it they are not

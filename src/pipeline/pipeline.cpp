@@ -3,6 +3,7 @@
 #include <H5public.h>
 #include <HYPRE_config.h>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <petscversion.h>
 
 #include <algorithm>
@@ -40,10 +41,15 @@ public:
         created_.push_back(p);
         interrupt_cleanup::add_folder(p.string());  // a signal does not run the destructor
     }
-    void keep() {
+    // The run is done: its folders stay, and a later signal says that its outputs (if it
+    // wrote any) are complete.
+    void keep(bool wrote) {
         created_.clear();
         kept_ = true;
-        interrupt_cleanup::committed();  // nothing left to remove; a later signal says so
+        if (wrote)
+            interrupt_cleanup::committed();
+        else
+            interrupt_cleanup::clear();
     }
     ~CreatedFolders() {
         if (kept_) return;
@@ -292,7 +298,8 @@ Scene load_run_scene(MPI_Comm comm, const RunOptions& opts) {
                                         : load_scene_file(opts.scene_path, opts.overrides);
         if (!opts.out_dir.empty()) scene.output.dir = opts.out_dir;
     });
-    check_output_path_length(comm, scene);  // so that `nimbus info` refuses what a run would
+    // So that `nimbus info` refuses what a run would (a run without outputs opens no file).
+    if (scene.output.hdf5 || scene.output.image) check_output_path_length(comm, scene);
     // A --set of another model's option is valid (scene files carry options for several models)
     // but has no effect on this run: say so, since it was typed for this run.
     for (const std::string& o : opts.overrides) {
@@ -429,7 +436,7 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
         ScopedTimer t(report, "output/commit");
         files.commit();
     }
-    created.keep();
+    created.keep(scene.output.hdf5 || scene.output.image);
     nlohmann::json summary = summarize();
     // Rank 0's clock, so that the report is the same on every rank.
     double total = wall_time() - t_start;

@@ -126,8 +126,8 @@ if [ $code -ne 0 ] && [ $code -ne 124 ] && echo "$out" | grep -q "nimbus: error:
 SUB=info expect_error "output path '.*' is [0-9]* characters long, more than the 200" "${small[@]}" \
   --set "output.dir=\"$tmp/long/$long\"" --set "output.name=\"$long\""
 SUB=info expect_error 'output.dir must not be empty: use "." for the working folder' "${small[@]}" --set 'output.dir=""'
-# A density file whose path MPI-IO would abort on: refused by name, in run and in info, before
-# any output folder is made (it aborted with exit 134 and left the folder).
+# A density file whose path MPI-IO would abort on: refused by name, in run and in info, and the
+# run leaves no output folder (it aborted with exit 134 and left the folder).
 mkdir -p "$tmp/long_in/$long/$long"
 /usr/bin/python3 -c "import sys; open(sys.argv[1], 'wb').write(bytes(4 * 512))" "$tmp/long_in/$long/$long/d.raw"
 expect_error "the density file's path is [0-9]* characters long, more than the 230 nimbus can open" \

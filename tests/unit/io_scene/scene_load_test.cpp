@@ -282,7 +282,8 @@ TEST(SceneLoad, EveryFieldRoundTrips) {
 TEST(SceneLoad, StoredSceneOfAnOddlyNamedFileRoundTrips) {
     Scene s = default_scene({});
     for (const std::string name : {"a\nb.toml", "bad\xff.toml", "tab\there\x7f.toml", "cut\xe2\x82.toml",
-                                   "\xed\xa0\x80.toml", "caf\xc3\xa9 \xe2\x98\x81.toml"}) {
+                                   "\xed\xa0\x80.toml", "\xe0\x80\x80.toml", "\xf0\x80\x80\x80.toml", "\xf4\x90\x80\x80.toml",
+                                   "\xc0\xaf.toml", "caf\xc3\xa9 \xe2\x98\x81.toml"}) {
         s.source = name;
         expect_round_trip(s);
     }

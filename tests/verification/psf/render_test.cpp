@@ -304,9 +304,9 @@ TEST(PsfModel, ImageIndependentOfRanksAndBrighterThanSingleScattering) {
 // A band's image is its own: the view-ray sample points (psf_source.h) are set by the bands that
 // scatter, whatever their order, so permuting the bands permutes the channels, and a band that
 // does not scatter changes nothing in the others. (Band 0 alone set them before: a first band
-// of sigma_t = 0 changed another band's image by 18% of its peak in a QA case.) Bands not
-// named r, g, b map to the channels in their order; early termination, which looks at every
-// band, is off.
+// of sigma_t = 0 changed another band's image by 18% of its peak in a QA case.) The model's
+// image has channel c = band c (the pipeline's reordering by name is not involved); early
+// termination, which looks at every band, is off.
 TEST(PsfModel, BandImagesDoNotDependOnTheBandsOrderNorOnABandThatDoesNotScatter) {
     Scene s = cloud_scene();
     s.render.early_termination = 0.0;
