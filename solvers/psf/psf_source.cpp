@@ -171,25 +171,23 @@ void PsfSource::prepare(const Box& box, const Decomposition& d) {
     }
 }
 
-// The finest of the scattering bands' spacings (a band with sigma_s = 0 has no H to sample): so
-// the sample points do not depend on the order of the bands, nor on bands that do not scatter.
-double PsfSource::spacing_bound(double tau_view, double s_view) const {
+// The finest of the scattering bands' spacings at depth tau and path S (a band with sigma_s = 0
+// has no H to sample): so the sample points do not depend on the order of the bands, nor on
+// bands that do not scatter.
+double PsfSource::finest_spacing(double tau, double S) const {
     double w2 = std::numeric_limits<double>::infinity();
     for (const BandPsf& b : bands_)
-        if (b.sigma_s > 0.0) w2 = std::min(w2, blur_width_sq(b.theta2, b.sigma_s * tau_view, s_view, b.a_over_b));
+        if (b.sigma_s > 0.0) w2 = std::min(w2, blur_width_sq(b.theta2, b.sigma_s * tau, S, b.a_over_b));
     return step_growth_ * std::max(2.0 * h_, std::isfinite(w2) ? 2.0 * std::sqrt(w2) : 0.0);
 }
+
+double PsfSource::spacing_bound(double tau_view, double s_view) const { return finest_spacing(tau_view, s_view); }
 
 double PsfSource::spacing(const Vec3& x, double tau_view, double s_view) const {
     if (!(step_growth_ > 0.0)) return 0.0;
     float depth[2];
     sample_level(*depth_view_, depth_, pyramid_.origin(), x, depth, 2);
-    const double tau = tau_view + std::max(0.0f, depth[0]);
-    const double S = s_view + std::max(0.0f, depth[1]);
-    double w2 = std::numeric_limits<double>::infinity();
-    for (const BandPsf& b : bands_)
-        if (b.sigma_s > 0.0) w2 = std::min(w2, blur_width_sq(b.theta2, b.sigma_s * tau, S, b.a_over_b));
-    return step_growth_ * std::max(2.0 * h_, std::isfinite(w2) ? 2.0 * std::sqrt(w2) : 0.0);
+    return finest_spacing(tau_view + std::max(0.0f, depth[0]), s_view + std::max(0.0f, depth[1]));
 }
 
 void PsfSource::level_at(int k, const Vec3& x, const float* depth, float* out) const {

@@ -83,6 +83,7 @@ public:
     double lookup(const Vec3& x, double w, int c) const;
 
 private:
+    double finest_spacing(double tau, double S) const;  // spacing()'s rule at depth tau, path S
     std::vector<DirectionalLight> lights_;
     // Level k of the pyramid at x into out (all components); level 0 as exp(-sigma_t tau_rho_l)
     // from the interpolated depths (so level 0 is never gathered for the march box).

@@ -381,8 +381,8 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
         check_finite_image(image, d.comm());
         std::vector<std::string> names;
         for (const BandOptics& b : medium.bands) names.push_back(b.name);
-        if (names.size() == 3 && rgb_band_of_channel(names) != std::array<int, 3>{0, 1, 2}) {
-            const std::array<int, 3> band = rgb_band_of_channel(names);
+        if (const std::array<int, 3> band = rgb_band_of_channel(names);
+            names.size() == 3 && band != std::array<int, 3>{0, 1, 2}) {
             std::string to;  // the channel of each band, in the scene's order
             for (int b = 0; b < 3; ++b)
                 to += std::string(to.empty() ? "" : ", ") + "RGB"[std::find(band.begin(), band.end(), b) - band.begin()];
