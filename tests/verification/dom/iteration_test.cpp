@@ -184,6 +184,9 @@ TEST(DomIteration, DsaAndPreconditionedGmresConvergeOnTheThickCube) {
         if (test::world_rank() == 0)
             std::printf("  max |fluence - DSA's| / peak: gmres %.2e, gmres-plain %.2e\n", d_gmres, d_plain);
         EXPECT_LE(d_gmres, 1e-5);
+        // Unpreconditioned GMRES converges slowly (28-29 iterations), so its stop at a change of
+        // 1e-6 leaves more of an error (2.5e-5 and 3.0e-5 measured); still the same answer.
+        EXPECT_LE(d_plain, 1e-4);
     }
 }
 

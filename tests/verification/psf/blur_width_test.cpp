@@ -55,6 +55,25 @@ TEST(PsfKernels, CurvedIntegralVanishesWithL) {
     }
 }
 
+// The render-time table weight_fast(l, mu) (bilinear in log l and sin(θ/2)) integrates over the
+// sphere to G(l) = curved_integral(l), which is tabulated separately (a quadrature in θ): a
+// wrong axis of the table (θ = asin v instead of 2 asin v) or a lost normalization fails. An
+// independent midpoint rule in mu, fine enough for the Gaussian's width sqrt(l/α_c) >= 0.02
+// rad; the table's bilinear interpolation leaves 1.4e-3 at l >= 0.05 and 2.6% at l = 1e-3
+// (g = 0.9), where that width is a few of its angle nodes.
+TEST(PsfKernels, RenderTableIntegratesToG) {
+    for (double g : {0.3, 0.85, 0.9}) {
+        const MsPhase p(g);
+        for (double l : {1e-3, 0.05, 0.5, 3.0, 40.0}) {
+            const int n = 200000;
+            double s = 0.0;
+            for (int i = 0; i < n; ++i) s += p.weight_fast(l, -1.0 + 2.0 * (i + 0.5) / n);
+            s *= 2.0 * std::numbers::pi * 2.0 / n;
+            EXPECT_NEAR(s / p.curved_integral(l), 1.0, l < 0.01 ? 0.03 : 2e-3) << "g " << g << " l " << l;
+        }
+    }
+}
+
 TEST(PsfKernels, MultipleScatteringPhaseIsNormalized) {
     for (double g : {0.3, 0.85, 0.9}) {
         const MsPhase p(g);
