@@ -237,6 +237,13 @@ void warn_if_dark(const Scene& scene, const Decomposition& d, const Medium& medi
         for (double e : l.E0) lit = lit || e > 0;
     for (const auto& src : scene.sources)
         for (double p : src.power) lit = lit || p > 0;
+    // The ground is a backdrop of the image, not an obstacle in the light pass: a sun below the
+    // horizon still lights the medium, from below, through it.
+    if (scene.sun.enabled && scene.sun.direction.z > 0 && scene.background.kind == BackgroundSpec::Kind::ground)
+        log::warn("sun.direction points upward (z = {:.3g}): the sun is below the horizon, yet it lights the medium "
+                  "from below through the ground (background.kind = \"ground\" only draws the ground in the image; "
+                  "it does not block light): give the sun a downward direction or set sun.enabled = false",
+                  scene.sun.direction.z);
     if (filled == 0)
         log::warn("the medium has no non-empty cells (density 0 everywhere): nothing scatters, fluence_diffuse "
                   "is zero and the image shows the background (check medium.density and medium.kind)");

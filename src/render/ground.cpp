@@ -36,9 +36,17 @@ GroundShading::GroundShading(const RenderInputs& in, const Decomposition& d)
     // owns, the sum over ranks assembles them.
     const Int3& n = in.medium.grid.n;
     side_.resize(in.light.lights.size());
+    bottom_.resize(in.light.lights.size());
     std::vector<double> all;
     for (size_t l = 0; l < side_.size(); ++l) {
         const Field<double>& tau = in.light.tau_rho[l];
+        std::vector<double>& bottom = bottom_[l];
+        bottom.assign(static_cast<size_t>(n[0]) * static_cast<size_t>(n[1]), 0.0);
+        if (owned_.lo[2] == 0)
+            for (int j = owned_.lo[1]; j < owned_.hi[1]; ++j)
+                for (int i = owned_.lo[0]; i < owned_.hi[0]; ++i)
+                    bottom[static_cast<size_t>(j) * static_cast<size_t>(n[0]) + static_cast<size_t>(i)] = tau(i, j, 0);
+        all.insert(all.end(), bottom.begin(), bottom.end());
         for (int f = 0; f < 4; ++f) {
             const int axis = f / 2, nt = n[1 - axis];
             std::vector<double>& face = side_[l][static_cast<size_t>(f)];
@@ -54,12 +62,33 @@ GroundShading::GroundShading(const RenderInputs& in, const Decomposition& d)
     }
     MPI_Allreduce(MPI_IN_PLACE, all.data(), static_cast<int>(all.size()), MPI_DOUBLE, MPI_SUM, d.comm());
     size_t at = 0;
-    for (auto& faces : side_)
-        for (auto& face : faces) {
-            std::copy(all.begin() + static_cast<std::ptrdiff_t>(at),
-                      all.begin() + static_cast<std::ptrdiff_t>(at + face.size()), face.begin());
-            at += face.size();
-        }
+    auto take = [&](std::vector<double>& part) {
+        std::copy(all.begin() + static_cast<std::ptrdiff_t>(at),
+                  all.begin() + static_cast<std::ptrdiff_t>(at + part.size()), part.begin());
+        at += part.size();
+    };
+    for (size_t l = 0; l < side_.size(); ++l) {
+        take(bottom_[l]);
+        for (auto& face : side_[l]) take(face);
+    }
+}
+
+double GroundShading::ground_tau(size_t l, double qx, double qy) const {
+    const int nx = in_.medium.grid.n[0], ny = in_.medium.grid.n[1];
+    const Vec3 u = -in_.light.lights[l].w;  // toward the light, u.z > 0
+    double px = qx + 0.5 * u.x / u.z, py = qy + 0.5 * u.y / u.z;
+    if (periodic_[0]) px -= nx * std::floor(px / nx);
+    if (periodic_[1]) py -= ny * std::floor(py / ny);
+    auto in_footprint = [&](double x, double y) { return x >= 0.0 && x <= nx && y >= 0.0 && y <= ny; };
+    if (!in_footprint(px, py)) return in_footprint(qx, qy) ? 0.0 : side_tau(l, qx, qy);
+    // Bilinear between the bottom layer's cell centres, clamped into the footprint.
+    const double cx = std::clamp(px - 0.5, 0.0, nx - 1.0), cy = std::clamp(py - 0.5, 0.0, ny - 1.0);
+    const int i0 = static_cast<int>(cx), j0 = static_cast<int>(cy);
+    const int i1 = std::min(i0 + 1, nx - 1), j1 = std::min(j0 + 1, ny - 1);
+    const double fx = cx - i0, fy = cy - j0;
+    const std::vector<double>& b = bottom_[l];
+    auto at = [&](int i, int j) { return b[static_cast<size_t>(j) * static_cast<size_t>(nx) + static_cast<size_t>(i)]; };
+    return (1 - fy) * ((1 - fx) * at(i0, j0) + fx * at(i1, j0)) + fy * ((1 - fx) * at(i0, j1) + fx * at(i1, j1));
 }
 
 double GroundShading::side_tau(size_t l, double qx, double qy) const {
@@ -113,28 +142,13 @@ bool GroundShading::shade(const Vec3& o, const Vec3& d, double* L) const {
     const int iy = std::clamp(qy < 0 ? -1 : static_cast<int>(std::min(qy, 2.0 * ny)), 0, ny - 1);
     if (ix < owned_.lo[0] || ix >= owned_.hi[0] || iy < owned_.lo[1] || iy >= owned_.hi[1]) return false;
 
-    const bool inside = qx >= 0 && qx < nx && qy >= 0 && qy < ny;
-    // Bilinear weights between bottom-layer cell centres, clamped into the footprint.
-    const double cx = std::clamp(qx - 0.5, 0.0, nx - 1.0), cy = std::clamp(qy - 0.5, 0.0, ny - 1.0);
-    const int i0 = static_cast<int>(cx), j0 = static_cast<int>(cy);
-    const int i1 = std::min(i0 + 1, nx - 1), j1 = std::min(j0 + 1, ny - 1);
-    const double fx = cx - i0, fy = cy - j0;
-    const int k = 0;
-
     const int nb = static_cast<int>(albedo_.size());
     const auto& lights = in_.light.lights;
     for (int b = 0; b < nb; ++b) L[b] = 0.0;
     for (size_t l = 0; l < lights.size(); ++l) {
         const double cos_in = std::max(0.0, -lights[l].w.z);
         if (cos_in == 0.0) continue;
-        double tau = 0.0;
-        if (shadows_ && inside) {
-            const Field<double>& f = in_.light.tau_rho[l];
-            tau = (1 - fy) * ((1 - fx) * f(i0, j0, k) + fx * f(i1, j0, k)) +
-                  fy * ((1 - fx) * f(i0, j1, k) + fx * f(i1, j1, k));
-        } else if (shadows_) {
-            tau = side_tau(l, qx, qy);
-        }
+        const double tau = shadows_ ? ground_tau(l, qx, qy) : 0.0;
         for (int b = 0; b < nb; ++b) {
             const double T = tau > 0.0 ? std::exp(-in_.medium.bands[static_cast<size_t>(b)].sigma_t * tau) : 1.0;
             L[b] += band_value(lights[l].E0, b) * cos_in * T;

@@ -4,14 +4,19 @@
 //   L_b = (albedo_b / π) Σ_l E0_{l,b} max(0, -w_l·z) T_{l,b}(x_ground)
 // T_{l,b} = exp(-sigma_t,b tau_rho_l) (1 in mode single_unshadowed), tau_rho_l from the light
 // pass (the optical depth per unit sigma_t from a cell centre out of the domain toward light l):
-// - inside the domain's footprint (or anywhere along a periodic axis, wrapped into it):
-//   bilinear between the cell centres of the bottom cell layer (k = 0), clamped to the
-//   footprint (the half cell below the layer centres is not added);
-// - outside it: the ray from the ground point toward the light either misses the domain
-//   (T = 1) or enters it through a side face, where tau_rho is bilinear between the centres of
-//   that face's cells (the domain's outer cell layer), clamped to the face. The side faces of
-//   every light are gathered on all ranks once (4 (nx + ny) nz / 2 values per light), so an
-//   oblique sun's shadow continues past the footprint.
+// - where the ray from the ground point q toward the light (u = -w_l) reaches the height of the
+//   bottom cell layer's centres, p = q + (h/2) u_xy / u_z, if p lies in the domain's footprint
+//   (or anywhere along a periodic axis, wrapped into it): bilinear between the centres of the
+//   bottom cell layer (k = 0), clamped to the footprint (the half cell below the centres is
+//   not added). Looking tau up at q itself put shadows (h/2) tan(zenith) too far toward the
+//   light: two cells at the QA's sun 76° from the zenith;
+// - else, if q is in the footprint, the ray has left it below those centres: 0;
+// - else the ray from q toward the light either misses the domain (T = 1) or enters it
+//   through a side face, where tau_rho is bilinear between the centres of that face's cells
+//   (the domain's outer cell layer), clamped to the face.
+// The bottom layer and the side faces of every light are gathered on all ranks once
+// (nx ny + 4 (nx + ny) nz / 2 values per light), so a shadow continues past the footprint and
+// past the columns a rank owns.
 // The rank owning the hit point's (x, y) column at k = 0 (hit point clamped into the
 // footprint) shades a pixel; the others do not, so each ground pixel is shaded exactly once.
 // The constructor is collective (the side-face gather); shade() is not.
@@ -44,10 +49,15 @@ private:
     // tau_rho of light l where the ray from ground point (qx, qy) (cells) toward the light
     // enters the domain through a side face; 0 when it misses the domain.
     double side_tau(size_t l, double qx, double qy) const;
+    // tau_rho of light l at ground point (qx, qy) (cells; wrapped along periodic axes): the
+    // rules above.
+    double ground_tau(size_t l, double qx, double qy) const;
 
     const RenderInputs& in_;
     // side_[l][f]: tau_rho of light l on side face f (x-, x+, y-, y+), [k][tangential cell].
     std::vector<std::array<std::vector<double>, 4>> side_;
+    // bottom_[l]: tau_rho of light l on the bottom cell layer (k = 0), [j][i].
+    std::vector<std::vector<double>> bottom_;
     Box owned_;
     std::array<bool, 2> periodic_{false, false};  // x, y
     bool active_ = false;

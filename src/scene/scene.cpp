@@ -3,9 +3,11 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <vector>
 
 #include "src/core/error.h"
 #include "src/render/ray_box.h"
@@ -125,7 +127,14 @@ Vec3 camera_world(const CameraSpec& c, const GridSpec& g, const Vec3& v) {
 }  // namespace
 
 // The pinhole model of src/render/camera.h, restated on the spec (tests/unit/render/camera_test.cpp
-// checks the two agree).
+// checks the two agree): whether the ray through some pixel's centre (the ray caster's rays)
+// meets the domain in front of the camera. The part of the domain in front of the camera
+// projects onto the image plane as the convex hull of its vertices (the box's corners in front
+// and its edges' crossings of a near plane), and an image row's centre line crosses that hull in
+// one interval: the ends of the pair segments that cross the line. Only the pixel centres in
+// that interval (plus a pixel of slack each side against rounding) are traced, a few per row,
+// so a domain a few pixels wide in a large image is found (a fixed 33 x 33 fan of rays missed
+// one 5 x 4 pixels wide in a 640 x 400 image).
 bool camera_sees_domain(const CameraSpec& c, const GridSpec& g) {
     const double h = g.h();
     const Vec3 extent{g.n[0] * h, g.n[1] * h, g.n[2] * h};
@@ -136,14 +145,59 @@ bool camera_sees_domain(const CameraSpec& c, const GridSpec& g) {
     const Vec3 right = normalized(side), up = cross(right, forward);
     const double half_h = std::tan(0.5 * c.fov_deg * std::numbers::pi / 180.0);
     const double half_w = half_h * static_cast<double>(c.width) / c.height;
-    for (int a = 0; a <= 32; ++a)
-        for (int b = 0; b <= 32; ++b) {
-            const double sx = (2.0 * a / 32.0 - 1.0) * half_w, sy = (1.0 - 2.0 * b / 32.0) * half_h;
-            double t0, t1;
-            if (intersect_box(position, normalized(forward + right * sx + up * sy), Vec3{0, 0, 0}, extent, t0, t1) &&
-                t1 > 0)
-                return true;
+    const double W = c.width, H = c.height;
+    auto pixel_sees = [&](int x, int y) {
+        const double sx = (2.0 * (x + 0.5) / W - 1.0) * half_w, sy = (1.0 - 2.0 * (y + 0.5) / H) * half_h;
+        double t0, t1;
+        return intersect_box(position, normalized(forward + right * sx + up * sy), Vec3{0, 0, 0}, extent, t0, t1) &&
+               t1 > 0;
+    };
+    bool inside = true;
+    for (int a = 0; a < 3; ++a) inside = inside && position[a] >= 0 && position[a] <= extent[a];
+    if (inside) return true;
+
+    // The domain's vertices in front of the camera, in image coordinates (u, v).
+    const double z_near = 1e-9 * (norm(extent) + norm(position));
+    std::array<Vec3, 8> corner;  // camera frame: (right, up, forward)
+    for (int m = 0; m < 8; ++m) {
+        const Vec3 r = Vec3{m & 1 ? extent.x : 0.0, m & 2 ? extent.y : 0.0, m & 4 ? extent.z : 0.0} - position;
+        corner[static_cast<size_t>(m)] = Vec3{dot(r, right), dot(r, up), dot(r, forward)};
+    }
+    std::vector<std::array<double, 2>> uv;
+    auto add = [&](const Vec3& q) {
+        uv.push_back({0.5 * W * (1.0 + q.x / (q.z * half_w)), 0.5 * H * (1.0 - q.y / (q.z * half_h))});
+    };
+    for (int m = 0; m < 8; ++m) {
+        const Vec3& a = corner[static_cast<size_t>(m)];
+        if (a.z >= z_near) add(a);
+        for (int bit : {1, 2, 4}) {  // each edge once, from its lower corner
+            if (m & bit) continue;
+            const Vec3& b = corner[static_cast<size_t>(m | bit)];
+            if ((a.z - z_near) * (b.z - z_near) < 0) add(a + (b - a) * ((z_near - a.z) / (b.z - a.z)));
         }
+    }
+    if (uv.empty()) return false;
+    double vmin = uv[0][1], vmax = uv[0][1];
+    for (const auto& p : uv) vmin = std::min(vmin, p[1]), vmax = std::max(vmax, p[1]);
+    const int y_lo = static_cast<int>(std::clamp(std::ceil(vmin - 0.5) - 1.0, 0.0, H - 1.0));
+    const int y_hi = static_cast<int>(std::clamp(std::floor(vmax - 0.5) + 1.0, 0.0, H - 1.0));
+    for (int y = y_lo; y <= y_hi; ++y) {
+        const double v = std::clamp(y + 0.5, vmin, vmax);
+        double ua = std::numeric_limits<double>::infinity(), ub = -ua;
+        for (size_t i = 0; i < uv.size(); ++i)
+            for (size_t j = i; j < uv.size(); ++j) {
+                const auto &p = uv[i], &q = uv[j];
+                if ((p[1] - v) * (q[1] - v) > 0) continue;  // the segment p q does not cross the line
+                const double u0 = p[1] == q[1] ? p[0] : p[0] + (v - p[1]) / (q[1] - p[1]) * (q[0] - p[0]);
+                const double u1 = p[1] == q[1] ? q[0] : u0;  // a segment along the line: both ends
+                ua = std::min({ua, u0, u1}), ub = std::max({ub, u0, u1});
+            }
+        if (!(ua <= ub)) continue;
+        const int x_lo = static_cast<int>(std::clamp(std::ceil(ua - 0.5) - 1.0, 0.0, W - 1.0));
+        const int x_hi = static_cast<int>(std::clamp(std::floor(ub - 0.5) + 1.0, 0.0, W - 1.0));
+        for (int x = x_lo; x <= x_hi; ++x)
+            if (pixel_sees(x, y)) return true;
+    }
     return false;
 }
 
@@ -209,10 +263,13 @@ void Scene::validate() const {
     require(camera.width > 0 && camera.height > 0 && camera.width <= 16384 && camera.height <= 16384,
             "camera.resolution must be between 1 and 16384 pixels per side");
     require(camera.fov_deg > 0 && camera.fov_deg < 180, "camera.fov must be in (0, 180) degrees");
-    const Vec3 view = camera.look_at - camera.position;
+    // In metres, as the camera is built (src/render/camera.cpp): with units = "domain" on a domain
+    // that is not a cube, an up that is parallel in fractions of the extent is not in metres,
+    // and the reverse.
+    const Vec3 view = camera_world(camera, grid, camera.look_at) - camera_world(camera, grid, camera.position);
     require(norm(view) > 0, "camera.look_at equals camera.position: the camera looks at nothing");
     require(norm(cross(view, camera.up)) > 1e-9 * norm(view) * norm(camera.up),
-            "camera.up is parallel to the view direction camera.look_at - camera.position");
+            "camera.up is parallel to the view direction camera.look_at - camera.position (in metres)");
     if (output.image) {
         // The image's colours: one band is gray, three are r, g, b (src/render, the Monte Carlo
         // path tracer alike); any other count used to fail only after the whole solve.

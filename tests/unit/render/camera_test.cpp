@@ -107,8 +107,19 @@ TEST(Camera, DegenerateViewsThrow) {
     EXPECT_THROW(Camera(parallel, test_grid()), Error);
 }
 
+// Whether some pixel's centre ray meets the domain in front of the camera, ray by ray.
+bool some_pixel_sees(const Camera& cam, const Grid& grid) {
+    for (int y = 0; y < cam.height(); ++y)
+        for (int x = 0; x < cam.width(); ++x) {
+            double t0, t1;
+            if (intersect_box(cam.position(), cam.pixel_direction(x, y), grid.origin, grid.upper(), t0, t1) && t1 > 0)
+                return true;
+        }
+    return false;
+}
+
 // The scene-side check restates the pinhole model on the spec; on random views around and inside
-// the domain it must give the answer of this camera's own fan of rays (the pipeline's check).
+// the domain it must give the answer of this camera's own rays, every pixel's centre traced.
 TEST(Camera, SceneCheckThatTheCameraSeesTheDomainAgrees) {
     GridSpec gs;
     gs.n = {20, 10, 40};
@@ -116,9 +127,9 @@ TEST(Camera, SceneCheckThatTheCameraSeesTheDomainAgrees) {
     const Grid grid = make_grid(gs);
     std::mt19937 rng(12345);
     std::uniform_real_distribution<double> pos(-2.0, 3.0), dir(-1.0, 1.0), fov(5.0, 120.0);
-    std::uniform_int_distribution<int> side(4, 800);
+    std::uniform_int_distribution<int> side(1, 120);
     int seen = 0, unseen = 0;
-    for (int trial = 0; trial < 400; ++trial) {
+    for (int trial = 0; trial < 600; ++trial) {
         CameraSpec c;
         c.position = {pos(rng), pos(rng), pos(rng)};
         c.look_at = c.position + Vec3{dir(rng), dir(rng), dir(rng)};
@@ -132,18 +143,62 @@ TEST(Camera, SceneCheckThatTheCameraSeesTheDomainAgrees) {
             c.look_at = Vec3{c.look_at.x * 10, c.look_at.y * 5, c.look_at.z * 20};
         }
         const Camera cam(c, grid);
-        bool hit = false;
-        for (int a = 0; a <= 32 && !hit; ++a)
-            for (int b = 0; b <= 32 && !hit; ++b) {
-                double t0, t1;
-                hit = intersect_box(cam.position(), cam.direction(a * cam.width() / 32.0, b * cam.height() / 32.0),
-                                    grid.origin, grid.upper(), t0, t1) && t1 > 0;
-            }
+        const bool hit = some_pixel_sees(cam, grid);
         EXPECT_EQ(camera_sees_domain(c, gs), hit) << "trial " << trial;
         (hit ? seen : unseen) += 1;
     }
-    EXPECT_GT(seen, 40);  // both answers are exercised
-    EXPECT_GT(unseen, 40);
+    EXPECT_GT(seen, 60);  // both answers are exercised
+    EXPECT_GT(unseen, 60);
+}
+
+// A distant domain a few pixels wide is seen (a fixed 33 x 33 fan of rays over the field of view
+// missed this one, 5 x 4 pixels of a 640 x 400 image: a QA case), and one that falls between the
+// pixel centres of a tiny image is not.
+TEST(Camera, SmallDomainsInTheImageAreSeenWhereAPixelCentreMeetsThem) {
+    GridSpec gs;
+    gs.n = {32, 32, 24};
+    gs.cell_size = 75.0;
+    const Grid grid = make_grid(gs);
+    CameraSpec far;
+    far.position = {0.5, -100.0, 0.5};
+    far.look_at = {1.6, 0.5, 1.97};
+    far.up = {0, 0, 1};
+    far.fov_deg = 42.0;
+    far.width = 640;
+    far.height = 400;
+    EXPECT_TRUE(some_pixel_sees(Camera(far, grid), grid));
+    EXPECT_TRUE(camera_sees_domain(far, gs));
+    // Centred, 0.2 pixels wide (2400 m at 240 km): on the centre of a 3 x 3 image, and between the
+    // centres of 2 x 2.
+    CameraSpec tiny = far;
+    tiny.look_at = {0.5, 0.5, 0.5};
+    tiny.fov_deg = 0.15 * 180.0 / std::numbers::pi;  // 0.05 rad per pixel of 3; the domain spans 0.01 rad
+    tiny.width = tiny.height = 3;
+    EXPECT_TRUE(some_pixel_sees(Camera(tiny, grid), grid));
+    EXPECT_TRUE(camera_sees_domain(tiny, gs));
+    tiny.width = tiny.height = 2;
+    EXPECT_FALSE(some_pixel_sees(Camera(tiny, grid), grid));
+    EXPECT_FALSE(camera_sees_domain(tiny, gs));
+}
+
+// camera.up is checked in metres, where the camera is built: on a domain that is not a cube, an
+// up parallel to the view in fractions of the extent is not in metres (and the reverse).
+TEST(Camera, SceneChecksUpInMetres) {
+    GridSpec gs;
+    gs.n = {32, 32, 24};
+    gs.cell_size = 75.0;
+    Scene s;
+    s.grid = gs;
+    s.bands = {BandOptics{"gray", 1.0, 0.5, 0.0}};
+    s.camera.domain_units = true;
+    s.camera.position = {0, 0.5, 1.5};
+    s.camera.look_at = {1, 0.5, 0.5};  // (1, 0, -1) in fractions, (0.8, 0, -0.6) in metres
+    s.camera.up = {1, 0, -1};
+    EXPECT_NO_THROW(s.validate());
+    EXPECT_NO_THROW(Camera(s.camera, make_grid(gs)));
+    s.camera.up = {4, 0, -3};
+    EXPECT_THROW(s.validate(), Error);
+    EXPECT_THROW(Camera(s.camera, make_grid(gs)), Error);
 }
 
 }  // namespace

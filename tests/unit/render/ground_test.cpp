@@ -10,6 +10,8 @@
 // only empty cells (view transmittance 1); rays that miss the ground see the sky colour.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <numbers>
 
 #include "tests/support/mpi_test.h"
@@ -79,8 +81,11 @@ void check_ground(bool with_cloud, const Int3& proc_dims) {
             const double t = -cam.position().z / d.z;
             const double gx = cam.position().x + t * d.x, gy = cam.position().y + t * d.y;
             const bool in = gx >= 0 && gx < 1 && gy >= 0 && gy < 1;
+            // A ground point within 0.3 h/2 of the x- edge: its ray toward the sun leaves the
+            // domain below the bottom cells' centres, crossing nothing the light pass counts.
+            const bool edge = in && gx * 16.0 + 0.5 * -w.x / -w.z < 0.0;
             bool checked = true;
-            const double T = in ? shadow : outside_T(gx * 16.0, gy * 16.0, checked);
+            const double T = edge ? 1.0 : in ? shadow : outside_T(gx * 16.0, gy * 16.0, checked);
             if (!checked) continue;
             const double want = lit * T;
             (in ? inside : outside)++;
@@ -97,7 +102,72 @@ void check_ground(bool with_cloud, const Int3& proc_dims) {
     EXPECT_GT(sky, 0);
 }
 
+// A low sun (63° from the zenith, tan = 2) beside a block (cells i < 4, all j, k = 2..5,
+// rho = 1): the ground's shadow is where the ray toward the sun crosses the block. That ray from
+// ground point X (cells) is at x = X - 2z, inside the block while (X - 4)/2 < z <= X/2, so its
+// depth in cells of height is
+//   f(X) = [min(6, X/2) - max(2, (X - 4)/2)]+,
+// rising over X in [4, 8], 2 over [8, 12], falling over [12, 16]; the light pass's tau_rho at
+// a bottom cell's centre (x_c, h/2) is f(x_c + 1) h / |w_z|. Ground pixels must show
+// exp(-sigma_t h f(X) / |w_z|) exactly where bilinear interpolation is exact (more than a cell
+// from f's kinks); looked up above X itself, the shadow sat a cell (h/2 tan) nearer the sun (43%
+// too bright on the rising ramp). Pixels whose view ray crosses the block are not checked.
+void check_low_sun_shadow(const Int3& proc_dims) {
+    Grid g;
+    g.n = {16, 16, 16};
+    g.h = 1.0 / 16;
+    Scene s;
+    s.bands = {BandOptics{"gray", 8.0, 0.9, 0.8}};
+    s.render.mode = RenderMode::absorption;
+    s.background.kind = BackgroundSpec::Kind::ground;
+    s.background.ground_albedo = 0.4;
+    s.background.color = {0.25};
+    s.camera.position = {0.6, 0.5, 3.0};
+    s.camera.look_at = {0.6, 0.5, 0.0};
+    s.camera.up = {0.0, 1.0, 0.0};
+    s.camera.fov_deg = 20;
+    s.camera.width = 64;
+    s.camera.height = 64;
+    const Vec3 w = normalized(Vec3{1.0, 0.0, -0.5});
+    const double E0 = 3.0, wz = std::abs(w.z);
+    auto f = [](double X) { return std::max(0.0, std::min(6.0, X / 2) - std::max(2.0, (X - 4) / 2)); };
+    auto world = test::make_world(MPI_COMM_WORLD, g, s, [&](int i, int j, int k) {
+        return test::inside_domain(g.n, i, j, k) && i < 4 && k >= 2 && k < 6 ? 1.0 : 0.0;
+    }, proc_dims);
+    world.light.lights = {DirectionalLight{"sun", w, {E0}}};
+    world.light.tau_rho.push_back(test::make_field(*world.d, [&](int i, int, int k, int) {
+        return k < 2 ? f(i + 0.5 + 2.0 * (k + 0.5)) * g.h / wz : 0.0;  // only the bottom layer is read
+    }));
+    const Image image = test::render(s, world);
+    if (test::world_rank() != 0) return;
+    const Camera cam(s.camera, g);
+    const double lit = 0.4 / std::numbers::pi * E0 * wz;
+    int checked = 0, ramp = 0, full = 0;
+    for (int y = 0; y < image.height; ++y)
+        for (int x = 0; x < image.width; ++x) {
+            const Vec3 d = cam.pixel_direction(x, y);
+            const double t = -cam.position().z / d.z;
+            const double X = (cam.position().x + t * d.x) * 16.0, Y = (cam.position().y + t * d.y) * 16.0;
+            const float* px = image.pixel(x, y);
+            if (px[3] != 0.0f || X < 0.0 || X > 16.0 || Y < 0.0 || Y > 16.0) continue;
+            bool near_kink = false;
+            for (double kink : {4.0, 8.0, 12.0, 16.0}) near_kink = near_kink || std::abs(X - kink) < 1.0;
+            if (near_kink) continue;
+            const double depth = f(X), want = lit * std::exp(-8.0 * depth * g.h / wz);
+            EXPECT_TRUE(test::close_rel(px[0], want, 1e-6))
+                << x << "," << y << " (ground x " << X << " cells): " << px[0] << " vs " << want;
+            ++checked;
+            ramp += depth > 0.0 && depth < 2.0;
+            full += depth == 2.0;
+        }
+    EXPECT_GT(ramp, 100);
+    EXPECT_GT(full, 100);
+    EXPECT_GT(checked, 500);
+}
+
 TEST(RenderGround, LitGroundWithoutCloud) { check_ground(false, {0, 0, 0}); }
+TEST(RenderGround, LowSunShadowSitsWhereTheRayTowardTheSunCrossesTheCloud) { check_low_sun_shadow({0, 0, 0}); }
+TEST(RenderGround, LowSunShadowSplitAlongX) { check_low_sun_shadow({0, 1, 1}); }
 TEST(RenderGround, CloudShadowsTheFootprint) { check_ground(true, {0, 0, 0}); }
 // Split along x: both ranks hold part of the bottom layer and shade their own columns.
 TEST(RenderGround, CloudShadowsTheFootprintSplitAlongX) { check_ground(true, {0, 1, 1}); }

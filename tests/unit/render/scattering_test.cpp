@@ -8,14 +8,22 @@
 //     + a [Phi/(4π) + (3g/4π) F·(-d)] (1 - e^{-kappa L}),      mu = w·(-d),
 // for a constant diffuse fluence Phi and flux F. single_unshadowed drops e^{-u0 - beta s}
 // and the diffuse term. Trilinear reconstruction of J between cell centres and the step rule
-// are second order in the cell optical depth (0.035 here: (kappa h)² = 1.2e-3); measured max
-// relative error 6.0e-5 (shadowed), 3.2e-5 (unshadowed), checked at 1.2e-4 and 7e-5.
+// are second order in the cell optical depth (kappa h = 0.031 here) inside the domain; in the
+// half cell between a face cell's centre and the domain's face the ray caster holds the face
+// cell's values (its ghosts repeat the face cell, view_volume.cpp, whatever the ghosts given
+// here hold), which is first order there: J changes by kappa h / (2 |w_z|) = 1.7% (the sun's
+// depth; the phase angle adds less) across that half cell, about 1/60 of a chord, at entry and
+// exit. Measured max relative error 5.0e-4 (shadowed), 2.2e-4 (unshadowed; 6.0e-5 and 3.2e-5
+// with J continued linearly into the ghosts), checked at 1e-3 and 4.5e-4.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <iostream>
 #include <numbers>
 
 #include "src/physics/phase.h"
+#include "src/render/source_kernel.h"
 #include "tests/support/mpi_test.h"
 #include "tests/unit/render/render_fixture.h"
 
@@ -86,12 +94,44 @@ void check_slab(RenderMode mode) {
             }
             const double got = image.pixel(x, y)[0];
             max_err = std::max(max_err, std::abs(got - want) / want);
-            EXPECT_TRUE(test::close_rel(got, want, shadows ? 1.2e-4 : 7e-5))
+            EXPECT_TRUE(test::close_rel(got, want, shadows ? 1e-3 : 4.5e-4))
                 << "pixel " << x << "," << y << ": " << got << " vs " << want;
         }
     EXPECT_GT(hits, 250);
     std::cout << "[ slab ] " << to_string(mode) << ": max relative error " << max_err << " over "
               << hits << " rays\n";
+}
+
+// The P1 in-scatter U + (3g/4π) F·w: unchanged while the flux is small enough for it to be >= 0
+// in every direction; beyond that its F term is scaled to the bound, so it is >= 0 everywhere,
+// touches 0 opposite the flux, and keeps U as its mean over directions (a quadrature over a
+// Fibonacci sphere of 2000 directions; the mean of F·w over the sphere is 0).
+TEST(RenderScattering, DiffuseInscatterStaysNonNegativeWithItsMean) {
+    const double inv4pi = 0.25 / std::numbers::pi, fluence = 2.0, U = fluence * inv4pi;
+    const Vec3 dir = normalized(Vec3{0.3, -0.5, 0.8});
+    for (double g : {0.85, -0.6}) {
+        const double bound = U / (3.0 * std::abs(g) * inv4pi);  // the largest |F| left as it is
+        for (double f : {0.5, 0.999, 2.0, 50.0}) {
+            const Vec3 F = dir * (f * bound);
+            double mean = 0.0, least = 1e300;
+            const int n = 2000;
+            for (int i = 0; i < n; ++i) {
+                const double z = 1.0 - (2.0 * i + 1.0) / n, r = std::sqrt(1.0 - z * z), phi = 2.399963229728653 * i;
+                const Vec3 w{r * std::cos(phi), r * std::sin(phi), z};
+                const double J = diffuse_inscatter(fluence, g, true, F, w);
+                if (f < 1.0) {
+                    EXPECT_NEAR(J, U + 3.0 * g * inv4pi * dot(F, w), 1e-15);
+                }
+                mean += J / n;
+                least = std::min(least, J);
+            }
+            EXPECT_NEAR(mean, U, 1e-3 * U) << "g " << g << " |F| / bound " << f;
+            EXPECT_GE(least, 0.0) << "g " << g << " |F| / bound " << f;
+            const double opposite = diffuse_inscatter(fluence, g, true, F, g > 0 ? -dir : dir);
+            EXPECT_NEAR(opposite, f < 1.0 ? U * (1.0 - f) : 0.0, 1e-12) << "g " << g << " |F| / bound " << f;
+        }
+    }
+    EXPECT_EQ(diffuse_inscatter(fluence, 0.85, false, Vec3{1e3, 0, 0}, Vec3{-1, 0, 0}), U);
 }
 
 TEST(RenderScattering, SingleScatterWithShadowsInASlab) { check_slab(RenderMode::scattering); }
