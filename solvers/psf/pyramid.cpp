@@ -226,8 +226,17 @@ Field<float> gather_layers(const PyramidLevel& level, int need_lo, int need_hi, 
         rcount(static_cast<size_t>(P)), rdispl(static_cast<size_t>(P));
     std::vector<float> send;
     const auto [olo, ohi] = level.z_owned[static_cast<size_t>(rank)];
+    // The other ranks' layers go through the send buffer (reserved exactly: a growing vector
+    // could hold twice them); this rank's own are copied straight into the result below.
+    auto sent_layers = [&](int p) {
+        return p == rank ? 0 : std::max(0, std::min(ohi, need[static_cast<size_t>(2 * p + 1)]) -
+                                               std::max(olo, need[static_cast<size_t>(2 * p)]));
+    };
+    std::int64_t send_layers = 0;
+    for (int p = 0; p < P; ++p) send_layers += sent_layers(p);
+    send.reserve(static_cast<size_t>(send_layers * layer));
     for (int p = 0; p < P; ++p) {
-        const int lo = std::max(olo, need[static_cast<size_t>(2 * p)]), hi = std::min(ohi, need[static_cast<size_t>(2 * p + 1)]);
+        const int lo = std::max(olo, need[static_cast<size_t>(2 * p)]), hi = lo + sent_layers(p);
         sdispl[static_cast<size_t>(p)] = static_cast<std::int64_t>(send.size());
         for (int z = lo; z < hi; ++z)
             for (int y = 0; y < n[1]; ++y) {
@@ -241,11 +250,14 @@ Field<float> gather_layers(const PyramidLevel& level, int need_lo, int need_hi, 
         const auto [plo, phi] = level.z_owned[static_cast<size_t>(p)];
         const int lo = std::max(plo, need_lo), hi = std::min(phi, need_hi);
         rdispl[static_cast<size_t>(p)] = std::max(0, lo - need_lo) * layer;
-        rcount[static_cast<size_t>(p)] = std::max(0, hi - lo) * layer;
+        rcount[static_cast<size_t>(p)] = p == rank ? 0 : std::max(0, hi - lo) * layer;
     }
     const BlockCounts sb(comm, scount, sdispl, MPI_FLOAT), rb(comm, rcount, rdispl, MPI_FLOAT);
     MPI_Alltoallv(send.data(), sb.counts(), sb.displs(), sb.type(), out.data(), rb.counts(), rb.displs(), rb.type(),
                   comm);
+    for (int z = std::max(olo, need_lo); z < std::min(ohi, need_hi); ++z)
+        for (int y = 0; y < n[1]; ++y)
+            std::copy_n(&level.values(0, y, z), static_cast<std::ptrdiff_t>(n[0]) * nc, &out(0, y, z));
     return out;
 }
 
