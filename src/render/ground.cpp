@@ -37,7 +37,7 @@ GroundShading::GroundShading(const RenderInputs& in, const Decomposition& d)
     const Int3& n = in.medium.grid.n;
     side_.resize(in.light.lights.size());
     bottom_.resize(in.light.lights.size());
-    std::vector<double> all;
+    std::vector<double> all;  // one light's parts, summed over the ranks (a count per light: < 2^31)
     for (size_t l = 0; l < side_.size(); ++l) {
         const Field<double>& tau = in.light.tau_rho[l];
         std::vector<double>& bottom = bottom_[l];
@@ -46,7 +46,6 @@ GroundShading::GroundShading(const RenderInputs& in, const Decomposition& d)
             for (int j = owned_.lo[1]; j < owned_.hi[1]; ++j)
                 for (int i = owned_.lo[0]; i < owned_.hi[0]; ++i)
                     bottom[static_cast<size_t>(j) * static_cast<size_t>(n[0]) + static_cast<size_t>(i)] = tau(i, j, 0);
-        all.insert(all.end(), bottom.begin(), bottom.end());
         for (int f = 0; f < 4; ++f) {
             const int axis = f / 2, nt = n[1 - axis];
             std::vector<double>& face = side_[l][static_cast<size_t>(f)];
@@ -58,19 +57,16 @@ GroundShading::GroundShading(const RenderInputs& in, const Decomposition& d)
                     face[static_cast<size_t>(k) * static_cast<size_t>(nt) + static_cast<size_t>(t)] =
                         axis == 0 ? tau(c, t, k) : tau(t, c, k);
         }
+        all.assign(bottom.begin(), bottom.end());
         for (auto& face : side_[l]) all.insert(all.end(), face.begin(), face.end());
+        MPI_Allreduce(MPI_IN_PLACE, all.data(), static_cast<int>(all.size()), MPI_DOUBLE, MPI_SUM, d.comm());
+        auto at = all.begin();
+        for (std::vector<double>* part : {&bottom, &side_[l][0], &side_[l][1], &side_[l][2], &side_[l][3]}) {
+            std::copy(at, at + static_cast<std::ptrdiff_t>(part->size()), part->begin());
+            at += static_cast<std::ptrdiff_t>(part->size());
+        }
     }
-    MPI_Allreduce(MPI_IN_PLACE, all.data(), static_cast<int>(all.size()), MPI_DOUBLE, MPI_SUM, d.comm());
-    size_t at = 0;
-    auto take = [&](std::vector<double>& part) {
-        std::copy(all.begin() + static_cast<std::ptrdiff_t>(at),
-                  all.begin() + static_cast<std::ptrdiff_t>(at + part.size()), part.begin());
-        at += part.size();
-    };
-    for (size_t l = 0; l < side_.size(); ++l) {
-        take(bottom_[l]);
-        for (auto& face : side_[l]) take(face);
-    }
+    if (!active_) side_.clear(), bottom_.clear();  // only the ranks with a part of the bottom shade
 }
 
 double GroundShading::ground_tau(size_t l, double qx, double qy) const {
@@ -108,6 +104,10 @@ double GroundShading::side_tau(size_t l, double qx, double qy) const {
     }
     if (face < 0) return 0.0;
     const double p[3] = {qx + s * u.x, qy + s * u.y, s * u.z};
+    // ground_tau calls this when the ray is outside the footprint at the bottom centres' height:
+    // entering below that height, it leaves the footprint again before it (the footprint is
+    // convex), crossing only the half cell that is not counted.
+    if (p[2] < 0.5) return 0.0;
     const int axis = face / 2, ta = 1 - axis;
     if (p[ta] < 0.0 || p[ta] > n[ta] || p[2] > n[2]) return 0.0;  // misses the domain
     // Bilinear between the face cells' centres, clamped to the face.

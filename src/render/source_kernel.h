@@ -5,7 +5,7 @@
 //   single_unshadowed (§5 eq. 9-10):      J = kappa a Σ_l E0_l p(mu_l)
 //   scattering (§6 eq. 13-14 + DESIGN §1): J = kappa a [Σ_l E0_l T_l p(mu_l) + fluence/(4π)
 //                                                        + (3 g / 4π) F·w_out] + q
-//   (the F term limited so that the diffuse part stays >= 0, diffuse_inscatter below)
+//   (the F term limited so that the diffuse part stays >= 0 where U >= 0, diffuse_inscatter below)
 //   (both scattering modes) q = power / 4π, the isotropic emission of the scene's volume
 //   sources in the cell ([[sources]], src/scene/emission.h; 0 where rho = 0)
 // with w_out the unit direction toward the camera (the radiance's travel direction, -d for a
@@ -32,7 +32,7 @@ inline double emission_radiance(double power) { return power * (0.25 / std::numb
 // with U = fluence/(4π). `has_flux` false drops the F term. Where P1 fails (a flux larger than
 // a non-negative in-scatter allows, (3|g|/4π)|F| > U: lit edges of a thick cloud under diffusion,
 // DOM's truncated moments) the F term is scaled down to that bound, so the in-scatter is >= 0 in
-// every direction and its mean over directions stays U (a negative J used to give negative
+// every direction wherever U >= 0 (a negative U stays negative) and its mean over directions stays U (a negative J used to give negative
 // pixels: -0.049 against a peak of 0.089 in a QA view of a diffusion cloud).
 inline double diffuse_inscatter(double fluence, double g, bool has_flux, const Vec3& F,
                                 const Vec3& w_out) {

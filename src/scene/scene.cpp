@@ -152,8 +152,8 @@ bool camera_sees_domain(const CameraSpec& c, const GridSpec& g) {
         return intersect_box(position, normalized(forward + right * sx + up * sy), Vec3{0, 0, 0}, extent, t0, t1) &&
                t1 > 0;
     };
-    bool inside = true;
-    for (int a = 0; a < 3; ++a) inside = inside && position[a] >= 0 && position[a] <= extent[a];
+    bool inside = true;  // strictly: from a face, a camera looking out sees nothing
+    for (int a = 0; a < 3; ++a) inside = inside && position[a] > 0 && position[a] < extent[a];
     if (inside) return true;
 
     // The domain's vertices in front of the camera, in image coordinates (u, v).

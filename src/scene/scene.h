@@ -170,9 +170,9 @@ struct Scene {
     void validate() const;
 };
 
-// Whether any ray of a 33 x 33 fan over the image (corners and edges included) meets the
-// domain box [0, n h]: false means the image would show only background, almost always a
-// mistake in camera.position/look_at/units. A degenerate view (look_at == position, up
+// Whether the ray through some pixel's centre (the ray caster's rays, src/render/camera.h)
+// meets the domain box [0, n h] in front of the camera: false means the image would show only
+// background, almost always a mistake in camera.position/look_at/units. A degenerate view (look_at == position, up
 // parallel to it) counts as seeing: validate() reports those on their own. Pure, no MPI.
 bool camera_sees_domain(const CameraSpec& camera, const GridSpec& grid);
 

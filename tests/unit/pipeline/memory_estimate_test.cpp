@@ -68,6 +68,7 @@ TEST(MemoryEstimate, EachModelAddsItsStorage) {
     const auto psf_share = [](MPI_Comm comm) {
         Scene s = default_scene();
         s.grid.n = {48, 48, 32};
+        s.camera.width = s.camera.height = 1;  // the render's per-pixel share is the same on every rank
         const Decomposition dd(comm, s.grid.n);
         s.model.name = "single";
         const double base = cmd::estimate_memory(s, dd).bytes;

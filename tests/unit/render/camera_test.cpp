@@ -181,6 +181,26 @@ TEST(Camera, SmallDomainsInTheImageAreSeenWhereAPixelCentreMeetsThem) {
     EXPECT_FALSE(camera_sees_domain(tiny, gs));
 }
 
+// A camera on a face of the domain sees it looking in and along the face, not looking out
+// (every ray there leaves the closed box at t = 0).
+TEST(Camera, ACameraOnAFaceSeesTheDomainOnlyLookingIn) {
+    GridSpec gs;
+    gs.n = {16, 12, 8};
+    gs.cell_size = 1.0;
+    const Grid grid = make_grid(gs);
+    CameraSpec c;
+    c.position = {0.0, 0.5, 0.5};
+    c.up = {0, 0, 1};
+    c.width = 24;
+    c.height = 16;
+    c.fov_deg = 40;
+    for (double dx : {-1.0, 1.0, 1e-3}) {
+        c.look_at = c.position + Vec3{dx, dx == 1e-3 ? 1.0 : 0.0, 0.0};
+        EXPECT_EQ(camera_sees_domain(c, gs), some_pixel_sees(Camera(c, grid), grid)) << dx;
+        EXPECT_EQ(camera_sees_domain(c, gs), dx > 0) << dx;
+    }
+}
+
 // camera.up is checked in metres, where the camera is built: on a domain that is not a cube, an
 // up parallel to the view in fractions of the extent is not in metres (and the reverse).
 TEST(Camera, SceneChecksUpInMetres) {

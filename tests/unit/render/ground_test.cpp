@@ -11,9 +11,11 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 
+#include "src/render/ground.h"
 #include "tests/support/mpi_test.h"
 #include "tests/unit/render/render_fixture.h"
 
@@ -163,6 +165,52 @@ void check_low_sun_shadow(const Int3& proc_dims) {
     EXPECT_GT(ramp, 100);
     EXPECT_GT(full, 100);
     EXPECT_GT(checked, 500);
+}
+
+// Ground points beside the domain under a low sun from over the domain (toward the light
+// u = (0.7, 0.7, 0.14) normalized; tau_rho = 1 in every cell): the ray from (-0.1, 8) enters
+// the x- face 0.02 cells up and reaches the bottom centres' height 2.5 cells inside, so it is
+// shadowed like the cells there; the ray from (-0.1, 15.9), by the y+ corner, enters as low and
+// leaves through the y+ face before that height, crossing only the half cell that is not
+// counted, so it is lit, as a point just inside the footprint there is (it was shadowed by the
+// face cell's tau: a sliver of shadow outside the footprint's corner).
+TEST(RenderGround, LowRaysBesideTheFootprintCrossOnlyWhatTheyReach) {
+    Grid g;
+    g.n = {16, 16, 16};
+    g.h = 1.0;
+    Scene s;
+    s.bands = {BandOptics{"gray", 1.0, 0.9, 0.8}};
+    s.render.mode = RenderMode::absorption;
+    s.background.kind = BackgroundSpec::Kind::ground;
+    s.background.ground_albedo = 0.5;
+    auto world = test::make_world(MPI_COMM_WORLD, g, s, [](int, int, int) { return 0.0; });
+    const Vec3 w = -normalized(Vec3{0.7, 0.7, 0.14});
+    world.light.lights = {DirectionalLight{"sun", w, {2.0}}};
+    world.light.tau_rho.push_back(test::make_field(*world.d, [](int, int, int, int) { return 1.0; }));
+    const RenderInputs in{s, world.medium, world.light, world.diffuse};
+    const GroundShading ground(in, *world.d);
+    const double lit = 0.5 / std::numbers::pi * 2.0 * -w.z;
+    auto shade = [&](double x, double y, double& L) {  // straight down onto ground point (x, y)
+        return ground.shade(Vec3{x, y, 5.0}, Vec3{0, 0, -1}, &L);
+    };
+    double L = -1.0;
+    if (shade(-0.1, 8.0, L)) {
+        EXPECT_NEAR(L, lit * std::exp(-1.0), 1e-12);
+    }
+    if (shade(-0.1, 15.9, L)) {
+        EXPECT_NEAR(L, lit, 1e-12);
+    }
+    if (shade(0.1, 15.9, L)) {
+        EXPECT_NEAR(L, lit, 1e-12);
+    }
+    if (shade(1.0, 8.0, L)) {
+        EXPECT_NEAR(L, lit * std::exp(-1.0), 1e-12);
+    }
+    // Each point is shaded by exactly one rank.
+    int shaded = 0;
+    for (const auto& q : {std::array<double, 2>{-0.1, 8.0}, {-0.1, 15.9}, {0.1, 15.9}, {1.0, 8.0}}) shaded += shade(q[0], q[1], L);
+    MPI_Allreduce(MPI_IN_PLACE, &shaded, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD);
+    EXPECT_EQ(shaded, 4);
 }
 
 TEST(RenderGround, LitGroundWithoutCloud) { check_ground(false, {0, 0, 0}); }
