@@ -69,6 +69,21 @@ GroundShading::GroundShading(const RenderInputs& in, const Decomposition& d)
     if (!active_) side_.clear(), bottom_.clear();  // only the ranks with a part of the bottom shade
 }
 
+namespace {
+
+// Bilinear interpolation of a plane of cell values, v[b * na + a] for cell (a, b), between the
+// cells' centres at point (pa, pb) in cell units, clamped to the plane.
+double bilinear_centres(const std::vector<double>& v, int na, int nb, double pa, double pb) {
+    const double ca = std::clamp(pa - 0.5, 0.0, na - 1.0), cb = std::clamp(pb - 0.5, 0.0, nb - 1.0);
+    const int a0 = static_cast<int>(ca), b0 = static_cast<int>(cb);
+    const int a1 = std::min(a0 + 1, na - 1), b1 = std::min(b0 + 1, nb - 1);
+    const double fa = ca - a0, fb = cb - b0;
+    auto at = [&](int a, int b) { return v[static_cast<size_t>(b) * static_cast<size_t>(na) + static_cast<size_t>(a)]; };
+    return (1 - fb) * ((1 - fa) * at(a0, b0) + fa * at(a1, b0)) + fb * ((1 - fa) * at(a0, b1) + fa * at(a1, b1));
+}
+
+}  // namespace
+
 double GroundShading::ground_tau(size_t l, double qx, double qy) const {
     const int nx = in_.medium.grid.n[0], ny = in_.medium.grid.n[1];
     const Vec3 u = -in_.light.lights[l].w;  // toward the light, u.z > 0
@@ -77,14 +92,7 @@ double GroundShading::ground_tau(size_t l, double qx, double qy) const {
     if (periodic_[1]) py -= ny * std::floor(py / ny);
     auto in_footprint = [&](double x, double y) { return x >= 0.0 && x <= nx && y >= 0.0 && y <= ny; };
     if (!in_footprint(px, py)) return in_footprint(qx, qy) ? 0.0 : side_tau(l, qx, qy);
-    // Bilinear between the bottom layer's cell centres, clamped into the footprint.
-    const double cx = std::clamp(px - 0.5, 0.0, nx - 1.0), cy = std::clamp(py - 0.5, 0.0, ny - 1.0);
-    const int i0 = static_cast<int>(cx), j0 = static_cast<int>(cy);
-    const int i1 = std::min(i0 + 1, nx - 1), j1 = std::min(j0 + 1, ny - 1);
-    const double fx = cx - i0, fy = cy - j0;
-    const std::vector<double>& b = bottom_[l];
-    auto at = [&](int i, int j) { return b[static_cast<size_t>(j) * static_cast<size_t>(nx) + static_cast<size_t>(i)]; };
-    return (1 - fy) * ((1 - fx) * at(i0, j0) + fx * at(i1, j0)) + fy * ((1 - fx) * at(i0, j1) + fx * at(i1, j1));
+    return bilinear_centres(bottom_[l], nx, ny, px, py);
 }
 
 double GroundShading::side_tau(size_t l, double qx, double qy) const {
@@ -110,15 +118,7 @@ double GroundShading::side_tau(size_t l, double qx, double qy) const {
     if (p[2] < 0.5) return 0.0;
     const int axis = face / 2, ta = 1 - axis;
     if (p[ta] < 0.0 || p[ta] > n[ta] || p[2] > n[2]) return 0.0;  // misses the domain
-    // Bilinear between the face cells' centres, clamped to the face.
-    const int nt = n[ta];
-    const double ct = std::clamp(p[ta] - 0.5, 0.0, nt - 1.0), cz = std::clamp(p[2] - 0.5, 0.0, n[2] - 1.0);
-    const int t0 = static_cast<int>(ct), k0 = static_cast<int>(cz);
-    const int t1 = std::min(t0 + 1, nt - 1), k1 = std::min(k0 + 1, n[2] - 1);
-    const double ft = ct - t0, fz = cz - k0;
-    const std::vector<double>& f = side_[l][static_cast<size_t>(face)];
-    auto at = [&](int k, int t) { return f[static_cast<size_t>(k) * static_cast<size_t>(nt) + static_cast<size_t>(t)]; };
-    return (1 - fz) * ((1 - ft) * at(k0, t0) + ft * at(k0, t1)) + fz * ((1 - ft) * at(k1, t0) + ft * at(k1, t1));
+    return bilinear_centres(side_[l][static_cast<size_t>(face)], n[ta], n[2], p[ta], p[2]);
 }
 
 double GroundShading::radiance_bound(int b) const {

@@ -22,16 +22,28 @@
 namespace nimbus {
 namespace {
 
-void check_ground(bool with_cloud, const Int3& proc_dims) {
+// The unit grid of 16³ cells, and an absorption-mode scene with a ground (albedo 0.4) under a
+// sky of 0.25 and one gray band of sigma_t.
+Grid ground_grid() {
     Grid g;
     g.n = {16, 16, 16};
     g.h = 1.0 / 16;
+    return g;
+}
+
+Scene ground_scene(double sigma_t) {
     Scene s;
-    s.bands = {BandOptics{"gray", 2.0, 0.9, 0.8}};
+    s.bands = {BandOptics{"gray", sigma_t, 0.9, 0.8}};
     s.render.mode = RenderMode::absorption;
     s.background.kind = BackgroundSpec::Kind::ground;
     s.background.ground_albedo = 0.4;
     s.background.color = {0.25};  // sky
+    return s;
+}
+
+void check_ground(bool with_cloud, const Int3& proc_dims) {
+    const Grid g = ground_grid();
+    Scene s = ground_scene(2.0);
     s.camera.position = {0.5, -0.5, 0.3};
     s.camera.look_at = {0.5, 0.5, 0.0};
     s.camera.fov_deg = 70;
@@ -115,15 +127,8 @@ void check_ground(bool with_cloud, const Int3& proc_dims) {
 // from f's kinks); looked up above X itself, the shadow sat a cell (h/2 tan) nearer the sun (43%
 // too bright on the rising ramp). Pixels whose view ray crosses the block are not checked.
 void check_low_sun_shadow(const Int3& proc_dims) {
-    Grid g;
-    g.n = {16, 16, 16};
-    g.h = 1.0 / 16;
-    Scene s;
-    s.bands = {BandOptics{"gray", 8.0, 0.9, 0.8}};
-    s.render.mode = RenderMode::absorption;
-    s.background.kind = BackgroundSpec::Kind::ground;
-    s.background.ground_albedo = 0.4;
-    s.background.color = {0.25};
+    const Grid g = ground_grid();
+    Scene s = ground_scene(8.0);
     s.camera.position = {0.6, 0.5, 3.0};
     s.camera.look_at = {0.6, 0.5, 0.0};
     s.camera.up = {0.0, 1.0, 0.0};
