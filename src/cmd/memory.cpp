@@ -9,6 +9,7 @@
 #include "src/core/error.h"
 #include "solvers/registry.h"
 #include "src/physics/lights.h"
+#include "src/render/ground.h"
 
 namespace nimbus::cmd {
 namespace {
@@ -44,6 +45,12 @@ MemoryEstimate estimate_memory(const Scene& s, const Decomposition& d) {
     const double fields = 1 + nlights + 2.0 * s.nbands() + 2.0;
     MemoryEstimate m{40.0 * 1024 * 1024 + local_cells * 8 * fields + 40.0 * s.camera.width * s.camera.height,
                      "light pass, render"};
+    // A shadowed ground gathers the outer cell layers of the density and of every light's tau
+    // on every rank (render/ground.h), and one field's more while it gathers.
+    if (s.background.kind == BackgroundSpec::Kind::ground && s.render.mode != RenderMode::single_unshadowed) {
+        m.bytes += (nlights + 2.0) * GroundShading::outer_layer_values(s.grid.n) * 8;
+        m.what += ", ground shadows";
+    }
     const double model = make_model(s.model)->memory_bytes(s, d, nlights);
     m.replicated = s.model.name == "montecarlo";
     if (model > 0) {

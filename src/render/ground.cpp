@@ -4,12 +4,104 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 #include "src/core/error.h"
 #include "src/physics/lights.h"
 
 namespace nimbus {
+
+namespace {
+
+using OuterLayers = GroundShading::OuterLayers;
+
+// The outer cell layers of f, the same on every rank: each rank fills the cells it owns, the
+// sum over ranks assembles them. Collective over comm (one field's values: < 2^31).
+OuterLayers gather_outer_layers(const Field<double>& f, const Box& owned, const Int3& n, MPI_Comm comm) {
+    OuterLayers out;
+    out.bottom.assign(static_cast<size_t>(n[0]) * static_cast<size_t>(n[1]), 0.0);
+    if (owned.lo[2] == 0)
+        for (int j = owned.lo[1]; j < owned.hi[1]; ++j)
+            for (int i = owned.lo[0]; i < owned.hi[0]; ++i)
+                out.bottom[static_cast<size_t>(j) * static_cast<size_t>(n[0]) + static_cast<size_t>(i)] = f(i, j, 0);
+    for (int face = 0; face < 4; ++face) {
+        const int axis = face / 2, nt = n[1 - axis];
+        std::vector<double>& side = out.side[static_cast<size_t>(face)];
+        side.assign(static_cast<size_t>(nt) * static_cast<size_t>(n[2]), 0.0);
+        const int c = face % 2 == 0 ? 0 : n[axis] - 1;  // the face's cell layer
+        if (c < owned.lo[axis] || c >= owned.hi[axis]) continue;
+        for (int k = owned.lo[2]; k < owned.hi[2]; ++k)
+            for (int t = owned.lo[1 - axis]; t < owned.hi[1 - axis]; ++t)
+                side[static_cast<size_t>(k) * static_cast<size_t>(nt) + static_cast<size_t>(t)] =
+                    axis == 0 ? f(c, t, k) : f(t, c, k);
+    }
+    std::vector<double> all(out.bottom);
+    for (const auto& side : out.side) all.insert(all.end(), side.begin(), side.end());
+    MPI_Allreduce(MPI_IN_PLACE, all.data(), static_cast<int>(all.size()), MPI_DOUBLE, MPI_SUM, comm);
+    auto at = all.begin();
+    for (std::vector<double>* part : {&out.bottom, &out.side[0], &out.side[1], &out.side[2], &out.side[3]}) {
+        std::copy(at, at + static_cast<std::ptrdiff_t>(part->size()), part->begin());
+        at += static_cast<std::ptrdiff_t>(part->size());
+    }
+    return out;
+}
+
+// A layer of na x nb unit cells holding v[b * na + a] for cell (a, b), wrapped along its
+// periodic axes and clamped to its cells otherwise.
+struct Layer {
+    const std::vector<double>& v;
+    int na, nb;
+    bool periodic_a, periodic_b;
+
+    static int wrap(int i, int n, bool periodic) {
+        return periodic ? ((i % n) + n) % n : std::clamp(i, 0, n - 1);
+    }
+    double at(int a, int b) const {
+        return v[static_cast<size_t>(wrap(b, nb, periodic_b)) * static_cast<size_t>(na) +
+                 static_cast<size_t>(wrap(a, na, periodic_a))];
+    }
+
+    // Bilinear between the cells' centres at point (pa, pb) (cell units).
+    double bilinear_centres(double pa, double pb) const {
+        auto corner = [](double p, int n, bool periodic, int& i0, double& f) {
+            const double c = periodic ? p - 0.5 : std::clamp(p - 0.5, 0.0, n - 1.0);
+            i0 = static_cast<int>(std::floor(c));
+            f = c - i0;
+        };
+        int a0 = 0, b0 = 0;
+        double fa = 0, fb = 0;
+        corner(pa, na, periodic_a, a0, fa);
+        corner(pb, nb, periodic_b, b0, fb);
+        return (1 - fb) * ((1 - fa) * at(a0, b0) + fa * at(a0 + 1, b0)) +
+               fb * ((1 - fa) * at(a0, b0 + 1) + fa * at(a0 + 1, b0 + 1));
+    }
+
+    // ∫_0^S v(a0 + s da, b0 + s db) ds over the piecewise-constant cells: exact, cell by cell
+    // (s in cells along a unit 3D direction whose components in the layer are da, db).
+    double segment_integral(double a0, double b0, double da, double db, double S) const {
+        constexpr double kInf = std::numeric_limits<double>::infinity();
+        auto to_next_line = [&](double x, double dx) {
+            return dx > 0 ? (std::floor(x) + 1 - x) / dx : dx < 0 ? (x - (std::ceil(x) - 1)) / -dx : kInf;
+        };
+        const double min_step = 1e-12 * std::max(1.0, S);  // no stall on a line hit by round-off
+        double sum = 0, s = 0;
+        while (s < S) {
+            const double a = a0 + s * da, b = b0 + s * db;
+            const double ds = std::min(S - s, std::max(min_step, std::min(to_next_line(a, da), to_next_line(b, db))));
+            const double sm = s + 0.5 * ds;  // the piece's midpoint names its cell
+            sum += ds * at(static_cast<int>(std::floor(a0 + sm * da)), static_cast<int>(std::floor(b0 + sm * db)));
+            s += ds;
+        }
+        return sum;
+    }
+};
+
+}  // namespace
+
+double GroundShading::outer_layer_values(const Int3& n) {
+    return static_cast<double>(n[0]) * n[1] + 2.0 * (static_cast<double>(n[0]) + n[1]) * n[2];
+}
 
 GroundShading::GroundShading(const RenderInputs& in, const Decomposition& d)
     : in_(in), owned_(d.local()) {
@@ -19,8 +111,8 @@ GroundShading::GroundShading(const RenderInputs& in, const Decomposition& d)
     for (int b = 0; b < nb; ++b)
         albedo_.push_back(bg.ground_color.empty() ? bg.ground_albedo : band_value(bg.ground_color, b));
     shadows_ = in.scene.render.mode != RenderMode::single_unshadowed;
-    // Checked collectively: the constructor's MPI_Allreduce below must be reached by every rank
-    // or by none (a throw on one rank would leave the others in it).
+    // Checked collectively: the gathers below must be reached by every rank or by none (a
+    // throw on one rank would leave the others in them).
     std::string problem;
     if (shadows_ && in.light.tau_rho.size() != in.light.lights.size())
         problem = "render: the ground background needs tau_rho from the light pass for every light";
@@ -32,93 +124,58 @@ GroundShading::GroundShading(const RenderInputs& in, const Decomposition& d)
     active_ = d.at_low_boundary(2);
     periodic_ = {d.periodic(0), d.periodic(1)};
     if (!shadows_) return;
-    // Side faces of every light's tau_rho on every rank: each rank fills the face cells it
-    // owns, the sum over ranks assembles them.
     const Int3& n = in.medium.grid.n;
-    side_.resize(in.light.lights.size());
-    bottom_.resize(in.light.lights.size());
-    std::vector<double> all;  // one light's parts, summed over the ranks (a count per light: < 2^31)
-    for (size_t l = 0; l < side_.size(); ++l) {
-        const Field<double>& tau = in.light.tau_rho[l];
-        std::vector<double>& bottom = bottom_[l];
-        bottom.assign(static_cast<size_t>(n[0]) * static_cast<size_t>(n[1]), 0.0);
-        if (owned_.lo[2] == 0)
-            for (int j = owned_.lo[1]; j < owned_.hi[1]; ++j)
-                for (int i = owned_.lo[0]; i < owned_.hi[0]; ++i)
-                    bottom[static_cast<size_t>(j) * static_cast<size_t>(n[0]) + static_cast<size_t>(i)] = tau(i, j, 0);
-        for (int f = 0; f < 4; ++f) {
-            const int axis = f / 2, nt = n[1 - axis];
-            std::vector<double>& face = side_[l][static_cast<size_t>(f)];
-            face.assign(static_cast<size_t>(nt) * static_cast<size_t>(n[2]), 0.0);
-            const int c = f % 2 == 0 ? 0 : n[axis] - 1;  // the face's cell layer
-            if (c < owned_.lo[axis] || c >= owned_.hi[axis]) continue;
-            for (int k = owned_.lo[2]; k < owned_.hi[2]; ++k)
-                for (int t = owned_.lo[1 - axis]; t < owned_.hi[1 - axis]; ++t)
-                    face[static_cast<size_t>(k) * static_cast<size_t>(nt) + static_cast<size_t>(t)] =
-                        axis == 0 ? tau(c, t, k) : tau(t, c, k);
-        }
-        all.assign(bottom.begin(), bottom.end());
-        for (auto& face : side_[l]) all.insert(all.end(), face.begin(), face.end());
-        MPI_Allreduce(MPI_IN_PLACE, all.data(), static_cast<int>(all.size()), MPI_DOUBLE, MPI_SUM, d.comm());
-        auto at = all.begin();
-        for (std::vector<double>* part : {&bottom, &side_[l][0], &side_[l][1], &side_[l][2], &side_[l][3]}) {
-            std::copy(at, at + static_cast<std::ptrdiff_t>(part->size()), part->begin());
-            at += static_cast<std::ptrdiff_t>(part->size());
-        }
+    rho_ = gather_outer_layers(in.medium.rho, owned_, n, d.comm());
+    for (const auto& tau : in.light.tau_rho) {
+        OuterLayers layers = gather_outer_layers(tau, owned_, n, d.comm());
+        if (active_) tau_.push_back(std::move(layers));  // only the ranks with a part of the bottom shade
     }
-    if (!active_) side_.clear(), bottom_.clear();  // only the ranks with a part of the bottom shade
+    if (!active_) rho_ = OuterLayers{};
 }
-
-namespace {
-
-// Bilinear interpolation of a plane of cell values, v[b * na + a] for cell (a, b), between the
-// cells' centres at point (pa, pb) in cell units, clamped to the plane.
-double bilinear_centres(const std::vector<double>& v, int na, int nb, double pa, double pb) {
-    const double ca = std::clamp(pa - 0.5, 0.0, na - 1.0), cb = std::clamp(pb - 0.5, 0.0, nb - 1.0);
-    const int a0 = static_cast<int>(ca), b0 = static_cast<int>(cb);
-    const int a1 = std::min(a0 + 1, na - 1), b1 = std::min(b0 + 1, nb - 1);
-    const double fa = ca - a0, fb = cb - b0;
-    auto at = [&](int a, int b) { return v[static_cast<size_t>(b) * static_cast<size_t>(na) + static_cast<size_t>(a)]; };
-    return (1 - fb) * ((1 - fa) * at(a0, b0) + fa * at(a1, b0)) + fb * ((1 - fa) * at(a0, b1) + fa * at(a1, b1));
-}
-
-}  // namespace
 
 double GroundShading::ground_tau(size_t l, double qx, double qy) const {
-    const int nx = in_.medium.grid.n[0], ny = in_.medium.grid.n[1];
-    const Vec3 u = -in_.light.lights[l].w;  // toward the light, u.z > 0
-    double px = qx + 0.5 * u.x / u.z, py = qy + 0.5 * u.y / u.z;
-    if (periodic_[0]) px -= nx * std::floor(px / nx);
-    if (periodic_[1]) py -= ny * std::floor(py / ny);
-    auto in_footprint = [&](double x, double y) { return x >= 0.0 && x <= nx && y >= 0.0 && y <= ny; };
-    if (!in_footprint(px, py)) return in_footprint(qx, qy) ? 0.0 : side_tau(l, qx, qy);
-    return bilinear_centres(bottom_[l], nx, ny, px, py);
-}
-
-double GroundShading::side_tau(size_t l, double qx, double qy) const {
     const Int3& n = in_.medium.grid.n;
     const Vec3 u = -in_.light.lights[l].w;  // toward the light, u.z > 0
-    // Entry of the ray q + s u (s >= 0, cell units) into [0, nx] x [0, ny] x [0, nz]: the
-    // latest entry over x and y (the ray starts at z = 0, below nothing).
     const double q[2] = {qx, qy}, ud[2] = {u.x, u.y};
-    double s = 0.0;
+    // The ray q + s u (s >= 0, cells) in the box [0, nx] x [0, ny] x [0, nz] (unbounded along
+    // periodic axes): entered at s0 (0 in the footprint, else through side face `face`), left
+    // at s1.
+    double s0 = 0.0, s1 = n[2] / u.z;
     int face = -1;
     for (int a = 0; a < 2; ++a) {
-        if (q[a] >= 0.0 && q[a] <= n[a]) continue;
-        const bool low = q[a] < 0.0;  // enters through the low face
-        if (low ? !(ud[a] > 0.0) : !(ud[a] < 0.0)) return 0.0;  // moving away
-        const double sa = ((low ? 0.0 : n[a]) - q[a]) / ud[a];
-        if (sa > s) s = sa, face = 2 * a + (low ? 0 : 1);
+        if (periodic_[a]) continue;
+        if (ud[a] == 0.0) {
+            if (q[a] < 0.0 || q[a] > n[a]) return 0.0;  // beside the domain, parallel to it
+            continue;
+        }
+        const double s_lo = (0.0 - q[a]) / ud[a], s_hi = (n[a] - q[a]) / ud[a];
+        const double enter = std::min(s_lo, s_hi), leave = std::max(s_lo, s_hi);
+        if (enter > s0) s0 = enter, face = 2 * a + (ud[a] > 0.0 ? 0 : 1);
+        s1 = std::min(s1, leave);
     }
-    if (face < 0) return 0.0;
-    const double p[3] = {qx + s * u.x, qy + s * u.y, s * u.z};
-    // ground_tau calls this when the ray is outside the footprint at the bottom centres' height:
-    // entering below that height, it leaves the footprint again before it (the footprint is
-    // convex), crossing only the half cell that is not counted.
-    if (p[2] < 0.5) return 0.0;
+    if (!(s0 < s1)) return 0.0;  // misses the domain
+    const double e[3] = {qx + s0 * u.x, qy + s0 * u.y, s0 * u.z};
+    const double h = in_.medium.grid.h;
+    const OuterLayers& tau = tau_[l];
+    if (e[2] < 0.5) {
+        // Through the bottom layer's lower half up to its centres' height (or out of the domain).
+        const Layer rho{rho_.bottom, n[0], n[1], periodic_[0], periodic_[1]};
+        const double s_half = 0.5 / u.z;
+        double t = h * rho.segment_integral(e[0], e[1], u.x, u.y, std::min(s_half, s1) - s0);
+        if (s_half < s1)
+            t += Layer{tau.bottom, n[0], n[1], periodic_[0], periodic_[1]}.bilinear_centres(qx + s_half * u.x,
+                                                                                          qy + s_half * u.y);
+        return t;
+    }
+    // Through side face `face`'s outer half cell to its centre plane, h/2 in (or out of the domain).
     const int axis = face / 2, ta = 1 - axis;
-    if (p[ta] < 0.0 || p[ta] > n[ta] || p[2] > n[2]) return 0.0;  // misses the domain
-    return bilinear_centres(side_[l][static_cast<size_t>(face)], n[ta], n[2], p[ta], p[2]);
+    const double s_centre = s0 + 0.5 / std::abs(ud[axis]);
+    const Layer rho{rho_.side[static_cast<size_t>(face)], n[ta], n[2], periodic_[ta], false};
+    double t = h * rho.segment_integral(e[ta], e[2], ud[ta], u.z, std::min(s_centre, s1) - s0);
+    if (s_centre < s1)
+        t += Layer{tau.side[static_cast<size_t>(face)], n[ta], n[2], periodic_[ta], false}.bilinear_centres(
+            q[ta] + s_centre * ud[ta], s_centre * u.z);
+    return t;
 }
 
 double GroundShading::radiance_bound(int b) const {

@@ -2,24 +2,28 @@
 // infinite in x and y, lit by the directional lights (Max 1995 Fig. 5 puts the cloud over a
 // ground; the shading is Lambert's law). Radiance leaving the ground, per band:
 //   L_b = (albedo_b / π) Σ_l E0_{l,b} max(0, -w_l·z) T_{l,b}(x_ground)
-// T_{l,b} = exp(-sigma_t,b tau_rho_l) (1 in mode single_unshadowed), tau_rho_l from the light
-// pass (the optical depth per unit sigma_t from a cell centre out of the domain toward light l):
-// - where the ray from the ground point q toward the light (u = -w_l) reaches the height of the
-//   bottom cell layer's centres, p = q + (h/2) u_xy / u_z, if p lies in the domain's footprint
-//   (or anywhere along a periodic axis, wrapped into it): bilinear between the centres of the
-//   bottom cell layer (k = 0), clamped to the footprint (the half cell below the centres is
-//   not added). Looking tau up at q itself put shadows (h/2) tan(zenith) too far toward the
-//   light: two cells at the QA's sun 76° from the zenith;
-// - else, if q is in the footprint, the ray has left it below those centres: 0;
-// - else the ray from q toward the light either misses the domain (T = 1) or enters it
-//   through a side face, where tau_rho is bilinear between the centres of that face's cells
-//   (the domain's outer cell layer), clamped to the face.
-// The bottom layer and the side faces of every light are gathered on all ranks once
-// (nx ny + 4 (nx + ny) nz / 2 values per light), so a shadow continues past the footprint and
+// T_{l,b} = exp(-sigma_t,b tau_rho_l(q)) (1 in mode single_unshadowed). The light pass gives
+// tau_rho_l (the optical depth per unit sigma_t out of the domain toward light l) at cell
+// centres only, and a ground point q lies half a cell below the bottom layer's centres (or
+// beside the domain), so the ray from q toward the light (u = -w_l) is split where it reaches
+// the centres of the outer cell layer it enters first:
+// - the part inside that layer's outer half is integrated EXACTLY over its piecewise-constant
+//   cells (the light pass's own medium), walking the layer cell by cell;
+// - from the point p where it reaches the layer's centres on, tau_rho is bilinear between
+//   those centres (wrapped along periodic axes, clamped to the layer otherwise).
+// Which layer: if q is in the domain's footprint, or the ray enters a side face below the
+// bottom centres' height (h/2), the bottom layer, with p at height h/2; if the ray leaves the
+// footprint before that height it crosses nothing more (the domain is convex). If it enters a
+// side face higher up, that face's cell layer, with p on the face cells' centre plane, h/2 in.
+// A ray that misses the domain has T = 1. Earlier versions looked tau_rho up at q itself
+// (shadows (h/2) tan(zenith) too far toward the light) and then at p without the half cell
+// below it (a fog layer on the ground let e^{sigma_t rho h / (2 |w_z|)} too much light through).
+// The outer layers of every light's tau_rho and of the density are gathered on all ranks once
+// ((lights + 1) (nx ny + 2 (nx + ny) nz) values), so a shadow continues past the footprint and
 // past the columns a rank owns.
 // The rank owning the hit point's (x, y) column at k = 0 (hit point clamped into the
 // footprint) shades a pixel; the others do not, so each ground pixel is shaded exactly once.
-// The constructor is collective (the side-face gather); shade() is not.
+// The constructor is collective (the gathers); shade() is not.
 #pragma once
 
 #include <array>
@@ -45,19 +49,24 @@ public:
     // (albedo_b / π) Σ_l E0_{l,b} max(0, -w_l·z); 0 without a ground.
     double radiance_bound(int b) const;
 
+    // Values the constructor gathers on every rank for a grid of n cells (per field: the bottom
+    // layer and the four side layers), for the memory estimate.
+    static double outer_layer_values(const Int3& n);
+
+    // One field's outer cell layers, the same on every rank.
+    struct OuterLayers {
+        std::vector<double> bottom;               // k = 0: [j][i]
+        std::array<std::vector<double>, 4> side;  // x-, x+, y-, y+: [k][t], t along the face
+    };
+
 private:
-    // tau_rho of light l where the ray from ground point (qx, qy) (cells) toward the light
-    // enters the domain through a side face; 0 when it misses the domain.
-    double side_tau(size_t l, double qx, double qy) const;
-    // tau_rho of light l at ground point (qx, qy) (cells; wrapped along periodic axes): the
-    // rules above.
+    // tau_rho of light l (density times metres) from ground point (qx, qy) (cells; wrapped
+    // along periodic axes) toward the light: the rules above.
     double ground_tau(size_t l, double qx, double qy) const;
 
     const RenderInputs& in_;
-    // side_[l][f]: tau_rho of light l on side face f (x-, x+, y-, y+), [k][tangential cell].
-    std::vector<std::array<std::vector<double>, 4>> side_;
-    // bottom_[l]: tau_rho of light l on the bottom cell layer (k = 0), [j][i].
-    std::vector<std::vector<double>> bottom_;
+    std::vector<OuterLayers> tau_;  // per light
+    OuterLayers rho_;
     Box owned_;
     std::array<bool, 2> periodic_{false, false};  // x, y
     bool active_ = false;

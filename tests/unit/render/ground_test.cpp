@@ -13,7 +13,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <numbers>
+#include <vector>
 
 #include "src/render/ground.h"
 #include "tests/support/mpi_test.h"
@@ -69,14 +71,17 @@ void check_ground(bool with_cloud, const Int3& proc_dims) {
     const double shadow = std::exp(-2.0 * rho * (k_top - k_bot) * g.h / std::abs(w.z));
     // Outside the footprint (cells): the ray from (qx, qy, 0) along -w enters the x+ face at
     // height z_p = (qx - 16) |w_z| / w_x when qx > 16 (it moves toward -x); elsewhere it
-    // misses. The face interpolates tau_rho linearly between cell centres, exact except
-    // within a cell of the layer's faces (z = 10, 14), where those pixels are not checked.
+    // misses. The ground integrates the face cells' outer half exactly and interpolates tau_rho
+    // linearly between their centres where the ray reaches them, at height
+    // z_c = z_p + (1/2) |w_z| / w_x: exact except within a cell of the layer's faces (z = 10, 14)
+    // or the top centres, where those pixels are not checked.
     auto outside_T = [&](double qx, double qy, bool& checked) {
         checked = true;
         if (!(qx > 16.0) || qy < 0.0 || qy > 16.0) return 1.0;
         const double zp = (qx - 16.0) * std::abs(w.z) / w.x;
         if (zp > 16.0) return 1.0;
-        if (std::abs(zp - k_bot) < 1.0 || std::abs(zp - k_top) < 1.0 || zp > 15.5) checked = false;
+        const double zc = zp + 0.5 * std::abs(w.z) / w.x;
+        if (std::abs(zc - k_bot) < 1.0 || std::abs(zc - k_top) < 1.0 || zc > 15.5) checked = false;
         const double depth = std::clamp(k_top - std::max(zp, double(k_bot)), 0.0, double(k_top - k_bot));
         return std::exp(-2.0 * rho * depth * g.h / std::abs(w.z));
     };
@@ -216,6 +221,103 @@ TEST(RenderGround, LowRaysBesideTheFootprintCrossOnlyWhatTheyReach) {
     for (const auto& q : {std::array<double, 2>{-0.1, 8.0}, {-0.1, 15.9}, {0.1, 15.9}, {1.0, 8.0}}) shaded += shade(q[0], q[1], L);
     MPI_Allreduce(MPI_IN_PLACE, &shaded, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD);
     EXPECT_EQ(shaded, 4);
+}
+
+// ∫ rho ds (cells) along the ray (x, z) + s (ux, 0, uz), uz > 0, through 16 x 16 (x, z) cells
+// of constant rho(i, k), x wrapped when periodic; the ray ends where it leaves [0, 16] in x or
+// z. Exact: the pieces between the x and z grid lines the ray crosses, each at its midpoint's
+// cell.
+double exact_depth(const std::function<double(int, int)>& rho, bool periodic, double x, double z, double ux,
+                   double uz) {
+    double s_end = (16.0 - z) / uz;
+    if (!periodic && ux != 0.0) s_end = std::min(s_end, ((ux > 0 ? 16.0 : 0.0) - x) / ux);
+    std::vector<double> s{0.0, s_end};
+    for (int m = 0; m <= 16; ++m) s.push_back((m - z) / uz);
+    for (int m = -64; m <= 64 && ux != 0.0; ++m) s.push_back((m - x) / ux);
+    std::sort(s.begin(), s.end());
+    double depth = 0.0;
+    for (size_t a = 0; a + 1 < s.size(); ++a) {
+        const double s0 = std::max(s[a], 0.0), s1 = std::min(s[a + 1], s_end);
+        if (!(s1 > s0)) continue;
+        const double sm = 0.5 * (s0 + s1);
+        const int i = static_cast<int>(std::floor(x + sm * ux)), k = static_cast<int>(std::floor(z + sm * uz));
+        depth += (s1 - s0) * rho(periodic ? ((i % 16) + 16) % 16 : i, k);
+    }
+    return depth;
+}
+
+// The ground's optical depth toward the sun must be the exact depth from the ground point (or
+// from where its ray enters the domain), on the unit-cell 16³ grid, sun in the x-z plane,
+// tau_rho of every cell centre exact (exact_depth), at points where tau_rho is linear between
+// the centres it is interpolated from:
+// - stairs in the bottom layer, rho = 1 + i/4 (k = 0), empty above, tan(zenith) = 2: tau_rho at
+//   height 1/2 is the mean of a staircase over one cell, affine in x; points inside the
+//   footprint (the ray crosses a line between columns in the layer's lower half) and one
+//   beside it whose ray enters the x- face at height 0.2;
+// - a fog layer two cells deep (rho = 1, k < 2): inside (looked up at p, the half cell below p
+//   used to be left out: e^{h / (2 |w_z|)} too much light), a ray entering the x- face at
+//   height 0.1 and one at 0.8 (through the face cells' outer half, then between their centres);
+// - the stairs periodic along x, rho = 1 + ((i + 4) mod 16) / 4, whose jump (i = 11 -> 12) is
+//   away from the points: the lower half's walk and the lookup wrap around x = 16;
+// - a block (i = 8..11, k = 4..11) and the sun behind it, tan(zenith) = 2 toward -x: ground
+//   beyond the x+ face, whose rays enter it at z_e = (qx - 16) / 2 and reach the face cells'
+//   centre plane at z_e + 1/4; there tau_rho is linear in z over [0.25, 2.25] and
+//   [8.25, 10.25] (the ray's run across the block grows and shrinks), so entries at
+//   z_e in [0.5, 1.25] and [8.25, 9.25] are exact. Looked up at the entry's own height, tau_rho
+//   belonged to an entry a quarter cell lower (h/2 u_z / |u_x|): the shadow's edge beyond a
+//   side face sat that far off (0.057 of 0.12 in the sphere_ground scene's image).
+// A point beside the domain needs the side layers of rho and tau_rho; every point is shaded by
+// exactly one rank.
+void check_ground_depth(const std::function<double(int, int)>& rho, bool periodic, const Vec3& u,
+                        const std::vector<double>& points, const Int3& proc_dims) {
+    Grid g;
+    g.n = {16, 16, 16};
+    g.h = 1.0;
+    Scene s = ground_scene(0.7);
+    auto world = test::make_world(MPI_COMM_WORLD, g, s, [&](int i, int, int k) { return rho(i, k); }, proc_dims,
+                                  {periodic, false, false});
+    world.light.lights = {DirectionalLight{"sun", -u, {2.0}}};  // u: toward the sun
+    world.light.tau_rho.push_back(test::make_field(*world.d, [&](int i, int, int k, int) {
+        return exact_depth(rho, periodic, i + 0.5, k + 0.5, u.x, u.z);
+    }));
+    const RenderInputs in{s, world.medium, world.light, world.diffuse};
+    const GroundShading ground(in, *world.d);
+    const double lit = 0.4 / std::numbers::pi * 2.0 * u.z;
+    int shaded = 0;
+    for (double qx : points) {
+        double L = -1.0;
+        if (!ground.shade(Vec3{qx, 7.3, 5.0}, Vec3{0, 0, -1}, &L)) continue;  // straight down onto (qx, 7.3)
+        ++shaded;
+        const bool inside = periodic || (qx >= 0.0 && qx <= 16.0);
+        const double face_x = qx < 0.0 ? 0.0 : 16.0;  // beside the domain: where the ray enters it
+        const double depth = inside ? exact_depth(rho, periodic, qx, 0.0, u.x, u.z)
+                                    : exact_depth(rho, periodic, face_x, (face_x - qx) / u.x * u.z, u.x, u.z);
+        EXPECT_GT(depth, 0.5) << qx;
+        EXPECT_NEAR(L, lit * std::exp(-0.7 * depth), 1e-12 * lit) << "ground x " << qx << ", depth " << depth;
+    }
+    MPI_Allreduce(MPI_IN_PLACE, &shaded, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD);
+    EXPECT_EQ(shaded, static_cast<int>(points.size()));
+}
+
+double stairs(int i, int k) { return k == 0 ? 1.0 + 0.25 * i : 0.0; }
+double fog(int, int k) { return k < 2 ? 1.0 : 0.0; }
+double periodic_stairs(int i, int k) { return k == 0 ? 1.0 + 0.25 * ((i + 4) % 16) : 0.0; }
+double block(int i, int k) { return i >= 8 && i < 12 && k >= 4 && k < 12 ? 1.0 : 0.0; }
+const Vec3 kSunOverX = normalized(Vec3{2.0, 0.0, 1.0});
+
+TEST(RenderGround, StairsInTheBottomLayer) {
+    check_ground_depth(stairs, false, kSunOverX, {2.0, 3.3, 7.77, 11.5, -0.4}, {0, 0, 0});
+}
+TEST(RenderGround, FogLayerOnTheGround) { check_ground_depth(fog, false, kSunOverX, {3.3, 8.0, -0.2, -1.6}, {0, 0, 0}); }
+TEST(RenderGround, PeriodicStairsWrap) {
+    check_ground_depth(periodic_stairs, true, kSunOverX, {14.7, 15.0, 15.5}, {0, 0, 0});
+}
+TEST(RenderGround, StairsSplitAlongX) {
+    check_ground_depth(stairs, false, kSunOverX, {2.0, 3.3, 7.77, 11.5, -0.4}, {0, 1, 1});
+}
+TEST(RenderGround, ShadowBeyondASideFace) {
+    const Vec3 behind{-kSunOverX.x, 0.0, kSunOverX.z};
+    check_ground_depth(block, false, behind, {17.0, 17.6, 18.5, 32.5, 33.3, 34.5}, {0, 0, 0});
 }
 
 TEST(RenderGround, LitGroundWithoutCloud) { check_ground(false, {0, 0, 0}); }
