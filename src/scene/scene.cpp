@@ -124,7 +124,46 @@ Vec3 camera_world(const CameraSpec& c, const GridSpec& g, const Vec3& v) {
     return c.domain_units ? Vec3{v.x * g.n[0] * h, v.y * g.n[1] * h, v.z * g.n[2] * h} : v;
 }
 
+// The spec's pinhole frame in metres (src/render/camera.h); degenerate when look_at equals the
+// position or up is parallel to the view (validate() reports those on their own).
+struct PinholeFrame {
+    Vec3 position, forward, right, up;
+    double half_w = 0, half_h = 0, W = 1, H = 1;
+    bool degenerate = true;
+
+    PinholeFrame(const CameraSpec& c, const GridSpec& g) {
+        position = camera_world(c, g, c.position);
+        const Vec3 view = camera_world(c, g, c.look_at) - position;
+        if (!(norm(view) > 0)) return;
+        forward = normalized(view);
+        const Vec3 side = cross(forward, c.up);
+        if (!(norm(side) > 1e-9 * norm(c.up))) return;
+        right = normalized(side), up = cross(right, forward);
+        half_h = std::tan(0.5 * c.fov_deg * std::numbers::pi / 180.0);
+        W = c.width, H = c.height;
+        half_w = half_h * W / H;
+        degenerate = false;
+    }
+    // The ray direction through pixel (x, y)'s centre.
+    Vec3 pixel_direction(int x, int y) const {
+        const double sx = (2.0 * (x + 0.5) / W - 1.0) * half_w, sy = (1.0 - 2.0 * (y + 0.5) / H) * half_h;
+        return normalized(forward + right * sx + up * sy);
+    }
+};
+
 }  // namespace
+
+bool camera_sees_ground(const CameraSpec& c, const GridSpec& g) {
+    const PinholeFrame f(c, g);
+    if (f.degenerate) return true;
+    if (!(f.position.z > 0.0)) return false;
+    // The z component of a pixel's direction (before normalizing) is affine in the pixel, so
+    // its least is at a corner pixel.
+    const int x1 = c.width - 1, y1 = c.height - 1;
+    for (const auto& [x, y] : {std::pair{0, 0}, {x1, 0}, {0, y1}, {x1, y1}})
+        if (f.pixel_direction(x, y).z < 0.0) return true;
+    return false;
+}
 
 // The pinhole model of src/render/camera.h, restated on the spec (tests/unit/render/camera_test.cpp
 // checks the two agree): whether the ray through some pixel's centre (the ray caster's rays)
@@ -138,19 +177,13 @@ Vec3 camera_world(const CameraSpec& c, const GridSpec& g, const Vec3& v) {
 bool camera_sees_domain(const CameraSpec& c, const GridSpec& g) {
     const double h = g.h();
     const Vec3 extent{g.n[0] * h, g.n[1] * h, g.n[2] * h};
-    const Vec3 position = camera_world(c, g, c.position), view = camera_world(c, g, c.look_at) - position;
-    if (!(norm(view) > 0)) return true;
-    const Vec3 forward = normalized(view), side = cross(forward, c.up);
-    if (!(norm(side) > 1e-9 * norm(c.up))) return true;
-    const Vec3 right = normalized(side), up = cross(right, forward);
-    const double half_h = std::tan(0.5 * c.fov_deg * std::numbers::pi / 180.0);
-    const double half_w = half_h * static_cast<double>(c.width) / c.height;
-    const double W = c.width, H = c.height;
+    const PinholeFrame f(c, g);
+    if (f.degenerate) return true;
+    const Vec3 &position = f.position, &forward = f.forward, &right = f.right, &up = f.up;
+    const double half_w = f.half_w, half_h = f.half_h, W = f.W, H = f.H;
     auto pixel_sees = [&](int x, int y) {
-        const double sx = (2.0 * (x + 0.5) / W - 1.0) * half_w, sy = (1.0 - 2.0 * (y + 0.5) / H) * half_h;
         double t0, t1;
-        return intersect_box(position, normalized(forward + right * sx + up * sy), Vec3{0, 0, 0}, extent, t0, t1) &&
-               t1 > 0;
+        return intersect_box(position, f.pixel_direction(x, y), Vec3{0, 0, 0}, extent, t0, t1) && t1 > 0;
     };
     bool inside = true;  // strictly: from a face, a camera looking out sees nothing
     for (int a = 0; a < 3; ++a) inside = inside && position[a] > 0 && position[a] < extent[a];
@@ -278,11 +311,14 @@ void Scene::validate() const {
                             "scene has {} [[optics]] tables: give 1 or 3, or set output.image = false",
                             nbands()));
         const double h = grid.h();
-        require(camera_sees_domain(camera, grid),
+        // With a ground background a view of the ground alone (a shadow beyond the domain) is
+        // a picture too.
+        const bool ground = background.kind == BackgroundSpec::Kind::ground;
+        require(camera_sees_domain(camera, grid) || (ground && camera_sees_ground(camera, grid)),
                 fmt::format("camera.look_at: the camera looks at nothing: the domain [0, {:.4g}] x [0, {:.4g}] x "
-                            "[0, {:.4g}] m is outside its field of view (check camera.position, camera.look_at, "
+                            "[0, {:.4g}] m{} is outside its field of view (check camera.position, camera.look_at, "
                             "camera.fov and units)",
-                            grid.n[0] * h, grid.n[1] * h, grid.n[2] * h));
+                            grid.n[0] * h, grid.n[1] * h, grid.n[2] * h, ground ? " and the ground" : ""));
         // The ground is the plane z = 0 seen from above (the ray caster shades it, Monte Carlo's
         // image leaves it black): a camera under it saw the medium through it.
         const double z = camera_world(camera, grid, camera.position).z;

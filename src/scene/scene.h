@@ -175,6 +175,9 @@ struct Scene {
 // background, almost always a mistake in camera.position/look_at/units. A degenerate view (look_at == position, up
 // parallel to it) counts as seeing: validate() reports those on their own. Pure, no MPI.
 bool camera_sees_domain(const CameraSpec& camera, const GridSpec& grid);
+// Whether the ray through some pixel's centre meets the ground (the plane z = 0 seen from above:
+// the camera above it, a ray going down). Degenerate views count as seeing. Pure, no MPI.
+bool camera_sees_ground(const CameraSpec& camera, const GridSpec& grid);
 
 const char* to_string(RenderMode m);
 const char* to_string(MediumSpec::Kind k);

@@ -162,6 +162,23 @@ TEST(SceneErrors, CameraSeeingNoDomain) {
     }
 }
 
+// With a ground background a camera may look at the ground beside the domain (where a low
+// sun's shadow falls), and is refused, naming the ground, only when it sees neither.
+TEST(SceneErrors, CameraSeeingOnlyTheGround) {
+    const std::string ground = kBase + "[background]\nkind = \"ground\"\n";
+    EXPECT_NO_THROW(load_scene_string(ground, "ok.toml", {"camera.position=[2.3,0.5,0.5]", "camera.look_at=[2.3,0.5,0.0]", "camera.up=[0.0,1.0,0.0]"}));
+    EXPECT_THROW(load_scene_string(kBase, "bad.toml", {"camera.position=[2.3,0.5,0.5]", "camera.look_at=[2.3,0.5,0.0]", "camera.up=[0.0,1.0,0.0]"}),
+                 Error);
+    try {
+        load_scene_string(ground, "bad.toml", {"camera.position=[2.3,0.5,0.5]", "camera.look_at=[2.3,0.5,3.0]", "camera.up=[0.0,1.0,0.0]"});
+        ADD_FAILURE() << "no error for a camera looking up beside the domain";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("the camera looks at nothing"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("and the ground is outside its field of view"), std::string::npos)
+            << e.what();
+    }
+}
+
 // Band names name the HDF5 datasets fields/<field>/<name>: refused at load time, not after the
 // solve when the output is written.
 TEST(SceneErrors, BandNames) {

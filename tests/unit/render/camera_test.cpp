@@ -181,6 +181,38 @@ TEST(Camera, SmallDomainsInTheImageAreSeenWhereAPixelCentreMeetsThem) {
     EXPECT_FALSE(camera_sees_domain(tiny, gs));
 }
 
+// With a ground background a view of the ground alone is a picture (a shadow beyond the
+// domain): camera_sees_ground must say whether some pixel's centre ray goes down from above the
+// ground, as this camera's own rays do, on random views.
+TEST(Camera, SceneCheckThatTheCameraSeesTheGroundAgrees) {
+    GridSpec gs;
+    gs.n = {20, 10, 40};
+    gs.cell_size = 0.5;
+    const Grid grid = make_grid(gs);
+    std::mt19937 rng(777);
+    std::uniform_real_distribution<double> pos(-2.0, 3.0), dir(-1.0, 1.0), fov(5.0, 120.0);
+    std::uniform_int_distribution<int> side(1, 120);
+    int seen = 0, unseen = 0;
+    for (int trial = 0; trial < 400; ++trial) {
+        CameraSpec c;
+        c.position = {pos(rng), pos(rng), pos(rng)};
+        c.look_at = c.position + Vec3{dir(rng), dir(rng), 0.3 * dir(rng)};
+        c.up = {dir(rng), dir(rng), 1.0};
+        c.fov_deg = fov(rng);
+        c.width = side(rng);
+        c.height = side(rng);
+        const Camera cam(c, grid);
+        bool down = false;
+        for (int y = 0; y < cam.height() && !down; ++y)
+            for (int x = 0; x < cam.width() && !down; ++x) down = cam.pixel_direction(x, y).z < 0.0;
+        const bool want = cam.position().z > 0.0 && down;
+        EXPECT_EQ(camera_sees_ground(c, gs), want) << "trial " << trial;
+        (want ? seen : unseen) += 1;
+    }
+    EXPECT_GT(seen, 40);  // both answers are exercised
+    EXPECT_GT(unseen, 40);
+}
+
 // A camera on a face of the domain sees it looking in and along the face, not looking out
 // (every ray there leaves the closed box at t = 0).
 TEST(Camera, ACameraOnAFaceSeesTheDomainOnlyLookingIn) {
