@@ -76,25 +76,6 @@ struct Layer {
         return (1 - fb) * ((1 - fa) * at(a0, b0) + fa * at(a0 + 1, b0)) +
                fb * ((1 - fa) * at(a0, b0 + 1) + fa * at(a0 + 1, b0 + 1));
     }
-
-    // ∫_0^S v(a0 + s da, b0 + s db) ds over the piecewise-constant cells: exact, cell by cell
-    // (s in cells along a unit 3D direction whose components in the layer are da, db).
-    double segment_integral(double a0, double b0, double da, double db, double S) const {
-        constexpr double kInf = std::numeric_limits<double>::infinity();
-        auto to_next_line = [&](double x, double dx) {
-            return dx > 0 ? (std::floor(x) + 1 - x) / dx : dx < 0 ? (x - (std::ceil(x) - 1)) / -dx : kInf;
-        };
-        const double min_step = 1e-12 * std::max(1.0, S);  // no stall on a line hit by round-off
-        double sum = 0, s = 0;
-        while (s < S) {
-            const double a = a0 + s * da, b = b0 + s * db;
-            const double ds = std::min(S - s, std::max(min_step, std::min(to_next_line(a, da), to_next_line(b, db))));
-            const double sm = s + 0.5 * ds;  // the piece's midpoint names its cell
-            sum += ds * at(static_cast<int>(std::floor(a0 + sm * da)), static_cast<int>(std::floor(b0 + sm * db)));
-            s += ds;
-        }
-        return sum;
-    }
 };
 
 }  // namespace
@@ -133,49 +114,83 @@ GroundShading::GroundShading(const RenderInputs& in, const Decomposition& d)
     if (!active_) rho_ = OuterLayers{};
 }
 
+double GroundShading::outer_rho(int i, int j, int k) const {
+    const Int3& n = in_.medium.grid.n;
+    i = Layer::wrap(i, n[0], periodic_[0]), j = Layer::wrap(j, n[1], periodic_[1]), k = std::clamp(k, 0, n[2] - 1);
+    auto at = [](const std::vector<double>& v, int nt, int t, int kk) {
+        return v[static_cast<size_t>(kk) * static_cast<size_t>(nt) + static_cast<size_t>(t)];
+    };
+    if (k == 0) return at(rho_.bottom, n[0], i, j);
+    if (!periodic_[0] && (i == 0 || i == n[0] - 1)) return at(rho_.side[i == 0 ? 0 : 1], n[1], j, k);
+    if (!periodic_[1] && (j == 0 || j == n[1] - 1)) return at(rho_.side[j == 0 ? 2 : 3], n[0], i, k);
+    return 0.0;  // not an outer cell: reached only by round-off at the core's surface
+}
+
+double GroundShading::shell_integral(double qx, double qy, const Vec3& u, double sa, double sb) const {
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    const double q[3] = {qx, qy, 0.0}, ud[3] = {u.x, u.y, u.z};
+    auto to_next_line = [&](int a, double s) {
+        const double x = q[a] + s * ud[a];
+        return ud[a] > 0 ? (std::floor(x) + 1 - x) / ud[a] : ud[a] < 0 ? (x - (std::ceil(x) - 1)) / -ud[a] : kInf;
+    };
+    const double min_step = 1e-12 * std::max(1.0, sb - sa);  // no stall on a line hit by round-off
+    double sum = 0, s = sa;
+    while (s < sb) {
+        const double ds = std::min(sb - s, std::max(min_step, std::min({to_next_line(0, s), to_next_line(1, s),
+                                                                         to_next_line(2, s)})));
+        const double sm = s + 0.5 * ds;  // the piece's midpoint names its cell
+        int c[3];
+        for (int a = 0; a < 3; ++a) c[a] = static_cast<int>(std::floor(q[a] + sm * ud[a]));
+        sum += ds * outer_rho(c[0], c[1], c[2]);
+        s += ds;
+    }
+    return sum;
+}
+
 double GroundShading::ground_tau(size_t l, double qx, double qy) const {
+    constexpr double kInf = std::numeric_limits<double>::infinity();
     const Int3& n = in_.medium.grid.n;
     const Vec3 u = -in_.light.lights[l].w;  // toward the light, u.z > 0
-    const double q[2] = {qx, qy}, ud[2] = {u.x, u.y};
-    // The ray q + s u (s >= 0, cells) in the box [0, nx] x [0, ny] x [0, nz] (unbounded along
-    // periodic axes): entered at s0 (0 in the footprint, else through side face `face`), left
-    // at s1.
-    double s0 = 0.0, s1 = n[2] / u.z;
-    int face = -1;
-    for (int a = 0; a < 2; ++a) {
-        if (periodic_[a]) continue;
-        if (ud[a] == 0.0) {
-            if (q[a] < 0.0 || q[a] > n[a]) return 0.0;  // beside the domain, parallel to it
-            continue;
+    const double q[3] = {qx, qy, 0.0}, ud[3] = {u.x, u.y, u.z};
+    // The ray q + s u (s >= 0, cells) against the box [lo, n_a - lo] per axis (unbounded along
+    // periodic x/y): the domain (lo = 0) and the core, the box of the cell centres (lo = 1/2).
+    // Returns [enter, leave] and the axis entered through (-1: none, the ray starts inside).
+    struct Span {
+        double enter = -kInf, leave = kInf;
+        int axis = -1;
+    };
+    auto span = [&](double lo) {
+        Span r;
+        for (int a = 0; a < 3; ++a) {
+            if (a < 2 && periodic_[a]) continue;
+            const double b0 = lo, b1 = n[a] - lo;
+            if (ud[a] == 0.0) {
+                if (q[a] < b0 || q[a] > b1) r.leave = -kInf;  // beside the box, parallel to it
+                continue;
+            }
+            const double s0 = (b0 - q[a]) / ud[a], s1 = (b1 - q[a]) / ud[a];
+            if (std::min(s0, s1) > r.enter) r.enter = std::min(s0, s1), r.axis = a;
+            r.leave = std::min(r.leave, std::max(s0, s1));
         }
-        const double s_lo = (0.0 - q[a]) / ud[a], s_hi = (n[a] - q[a]) / ud[a];
-        const double enter = std::min(s_lo, s_hi), leave = std::max(s_lo, s_hi);
-        if (enter > s0) s0 = enter, face = 2 * a + (ud[a] > 0.0 ? 0 : 1);
-        s1 = std::min(s1, leave);
-    }
-    if (!(s0 < s1)) return 0.0;  // misses the domain
-    const double e[3] = {qx + s0 * u.x, qy + s0 * u.y, s0 * u.z};
+        return r;
+    };
+    const Span domain = span(0.0), core = span(0.5);
+    const double s0 = std::max(domain.enter, 0.0);
+    if (!(s0 < domain.leave)) return 0.0;  // misses the domain
+    // The core has an inside (every n_a >= 2) and the ray enters it: through the outer shell
+    // exactly, then tau_rho on the core's face where it enters, bilinear between the centres of
+    // that outer layer (an interpolation: the point lies within the face's centres).
+    const bool hits_core = core.enter < core.leave && core.enter >= s0;
     const double h = in_.medium.grid.h;
-    const OuterLayers& tau = tau_[l];
-    if (e[2] < 0.5) {
-        // Through the bottom layer's lower half up to its centres' height (or out of the domain).
-        const Layer rho{rho_.bottom, n[0], n[1], periodic_[0], periodic_[1]};
-        const double s_half = 0.5 / u.z;
-        double t = h * rho.segment_integral(e[0], e[1], u.x, u.y, std::min(s_half, s1) - s0);
-        if (s_half < s1)
-            t += Layer{tau.bottom, n[0], n[1], periodic_[0], periodic_[1]}.bilinear_centres(qx + s_half * u.x,
-                                                                                          qy + s_half * u.y);
-        return t;
-    }
-    // Through side face `face`'s outer half cell to its centre plane, h/2 in (or out of the domain).
-    const int axis = face / 2, ta = 1 - axis;
-    const double s_centre = s0 + 0.5 / std::abs(ud[axis]);
-    const Layer rho{rho_.side[static_cast<size_t>(face)], n[ta], n[2], periodic_[ta], false};
-    double t = h * rho.segment_integral(e[ta], e[2], ud[ta], u.z, std::min(s_centre, s1) - s0);
-    if (s_centre < s1)
-        t += Layer{tau.side[static_cast<size_t>(face)], n[ta], n[2], periodic_[ta], false}.bilinear_centres(
-            q[ta] + s_centre * ud[ta], s_centre * u.z);
-    return t;
+    double tau = h * shell_integral(qx, qy, u, s0, hits_core ? core.enter : domain.leave);
+    if (!hits_core) return tau;
+    const double p[3] = {qx + core.enter * u.x, qy + core.enter * u.y, core.enter * u.z};
+    const OuterLayers& t = tau_[l];
+    if (core.axis == 2)
+        return tau + Layer{t.bottom, n[0], n[1], periodic_[0], periodic_[1]}.bilinear_centres(p[0], p[1]);
+    const int axis = core.axis, ta = 1 - axis;
+    const int face = 2 * axis + (ud[axis] > 0.0 ? 0 : 1);  // entered from its low side: the low face's layer
+    return tau + Layer{t.side[static_cast<size_t>(face)], n[ta], n[2], periodic_[ta], false}.bilinear_centres(p[ta], p[2]);
 }
 
 double GroundShading::radiance_bound(int b) const {

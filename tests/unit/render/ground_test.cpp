@@ -100,9 +100,12 @@ void check_ground(bool with_cloud, const Int3& proc_dims) {
             const double t = -cam.position().z / d.z;
             const double gx = cam.position().x + t * d.x, gy = cam.position().y + t * d.y;
             const bool in = gx >= 0 && gx < 1 && gy >= 0 && gy < 1;
-            // A ground point within 0.3 h/2 of the x- edge: its ray toward the sun leaves the
-            // domain below the bottom cells' centres, crossing nothing the light pass counts.
-            const bool edge = in && gx * 16.0 + 0.5 * -w.x / -w.z < 0.0;
+            // A ground point within h/2 + 0.3 h/2 of the x- edge: its ray toward the sun
+            // reaches the bottom centres' height in the outer half of the x- cells, moving
+            // toward -x, so it never enters the box of the cell centres: it leaves the domain
+            // through the x- face 2.2 cells up at most, far below the layer (the tau_rho given
+            // here, the layer's depth everywhere, is not read).
+            const bool edge = in && gx * 16.0 + 0.5 * -w.x / -w.z < 0.5;
             bool checked = true;
             const double T = edge ? 1.0 : in ? shadow : outside_T(gx * 16.0, gy * 16.0, checked);
             if (!checked) continue;
@@ -314,6 +317,16 @@ TEST(RenderGround, PeriodicStairsWrap) {
 }
 TEST(RenderGround, StairsSplitAlongX) {
     check_ground_depth(stairs, false, kSunOverX, {2.0, 3.3, 7.77, 11.5, -0.4}, {0, 1, 1});
+}
+// The fog layer under a sun toward -x: ground points near the x- face whose ray reaches the
+// bottom centres' height in the face cells' outer half (q_x in (1, 1.5)) leave through the
+// face, crossing only x_p / |u_x| of fog there; they were given the face cell's centre's tau,
+// whose ray crosses half a cell more (T 0.21 instead of 0.54 in the QA's case). Beyond
+// q_x = 1.5 the ray enters the centres' box through its bottom, where tau_rho is linear in x
+// (its ray leaves through the x- face below the fog's top up to x = 3).
+TEST(RenderGround, FogBesideTheFaceTheLightLeavesThrough) {
+    const Vec3 behind{-kSunOverX.x, 0.0, kSunOverX.z};
+    check_ground_depth(fog, false, behind, {0.6, 0.8, 1.2, 1.4, 2.0, 2.6}, {0, 0, 0});
 }
 TEST(RenderGround, ShadowBeyondASideFace) {
     const Vec3 behind{-kSunOverX.x, 0.0, kSunOverX.z};
