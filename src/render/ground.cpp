@@ -18,13 +18,18 @@ using OuterLayers = GroundShading::OuterLayers;
 
 // The outer cell layers of f, the same on every rank: each rank fills the cells it owns, the
 // sum over ranks assembles them. Collective over comm (one field's values: < 2^31).
-OuterLayers gather_outer_layers(const Field<double>& f, const Box& owned, const Int3& n, MPI_Comm comm) {
+OuterLayers gather_outer_layers(const Field<double>& f, const Box& owned, const Int3& n, bool with_top,
+                                MPI_Comm comm) {
     OuterLayers out;
-    out.bottom.assign(static_cast<size_t>(n[0]) * static_cast<size_t>(n[1]), 0.0);
-    if (owned.lo[2] == 0)
+    auto horizontal = [&](std::vector<double>& layer, int k) {
+        layer.assign(static_cast<size_t>(n[0]) * static_cast<size_t>(n[1]), 0.0);
+        if (k < owned.lo[2] || k >= owned.hi[2]) return;
         for (int j = owned.lo[1]; j < owned.hi[1]; ++j)
             for (int i = owned.lo[0]; i < owned.hi[0]; ++i)
-                out.bottom[static_cast<size_t>(j) * static_cast<size_t>(n[0]) + static_cast<size_t>(i)] = f(i, j, 0);
+                layer[static_cast<size_t>(j) * static_cast<size_t>(n[0]) + static_cast<size_t>(i)] = f(i, j, k);
+    };
+    horizontal(out.bottom, 0);
+    if (with_top) horizontal(out.top, n[2] - 1);
     for (int face = 0; face < 4; ++face) {
         const int axis = face / 2, nt = n[1 - axis];
         std::vector<double>& side = out.side[static_cast<size_t>(face)];
@@ -37,10 +42,11 @@ OuterLayers gather_outer_layers(const Field<double>& f, const Box& owned, const 
                     axis == 0 ? f(c, t, k) : f(t, c, k);
     }
     std::vector<double> all(out.bottom);
+    all.insert(all.end(), out.top.begin(), out.top.end());
     for (const auto& side : out.side) all.insert(all.end(), side.begin(), side.end());
     MPI_Allreduce(MPI_IN_PLACE, all.data(), static_cast<int>(all.size()), MPI_DOUBLE, MPI_SUM, comm);
     auto at = all.begin();
-    for (std::vector<double>* part : {&out.bottom, &out.side[0], &out.side[1], &out.side[2], &out.side[3]}) {
+    for (std::vector<double>* part : {&out.bottom, &out.top, &out.side[0], &out.side[1], &out.side[2], &out.side[3]}) {
         std::copy(at, at + static_cast<std::ptrdiff_t>(part->size()), part->begin());
         at += static_cast<std::ptrdiff_t>(part->size());
     }
@@ -81,7 +87,7 @@ struct Layer {
 }  // namespace
 
 double GroundShading::outer_layer_values(const Int3& n) {
-    return static_cast<double>(n[0]) * n[1] + 2.0 * (static_cast<double>(n[0]) + n[1]) * n[2];
+    return 2.0 * static_cast<double>(n[0]) * n[1] + 2.0 * (static_cast<double>(n[0]) + n[1]) * n[2];
 }
 
 GroundShading::GroundShading(const RenderInputs& in, const Decomposition& d)
@@ -106,9 +112,11 @@ GroundShading::GroundShading(const RenderInputs& in, const Decomposition& d)
     periodic_ = {d.periodic(0), d.periodic(1)};
     if (!shadows_) return;
     const Int3& n = in.medium.grid.n;
-    rho_ = gather_outer_layers(in.medium.rho, owned_, n, d.comm());
+    // The shell walk reads the top layer's density too; lookups of tau_rho never reach the top
+    // (the ray goes up, so it enters the core from below or from a side).
+    rho_ = gather_outer_layers(in.medium.rho, owned_, n, true, d.comm());
     for (const auto& tau : in.light.tau_rho) {
-        OuterLayers layers = gather_outer_layers(tau, owned_, n, d.comm());
+        OuterLayers layers = gather_outer_layers(tau, owned_, n, false, d.comm());
         if (active_) tau_.push_back(std::move(layers));  // only the ranks with a part of the bottom shade
     }
     if (!active_) rho_ = OuterLayers{};
@@ -121,6 +129,7 @@ double GroundShading::outer_rho(int i, int j, int k) const {
         return v[static_cast<size_t>(kk) * static_cast<size_t>(nt) + static_cast<size_t>(t)];
     };
     if (k == 0) return at(rho_.bottom, n[0], i, j);
+    if (k == n[2] - 1) return at(rho_.top, n[0], i, j);
     if (!periodic_[0] && (i == 0 || i == n[0] - 1)) return at(rho_.side[i == 0 ? 0 : 1], n[1], j, k);
     if (!periodic_[1] && (j == 0 || j == n[1] - 1)) return at(rho_.side[j == 0 ? 2 : 3], n[0], i, k);
     return 0.0;  // not an outer cell: reached only by round-off at the core's surface

@@ -14,7 +14,8 @@
 // - from the point where it enters the core on, tau_rho is bilinear between the centres of the
 //   outer cell layer whose centre plane that core face is (the bottom layer, or a side face's):
 //   an interpolation, the point lies within those centres.
-// A ray that misses the domain has T = 1; one that misses the core crosses only the shell.
+// A ray that misses the domain has T = 1; one that misses the core crosses only the shell (the
+// outer half cells of the bottom, the sides and, entering a side within h/2 of the top, the top).
 // Earlier versions looked tau_rho up at q itself (shadows (h/2) tan(zenith) too far toward the
 // light), then at the bottom centres' height without the half cell below (a fog layer on the
 // ground let e^{sigma_t rho h / (2 |w_z|)} too much light through), at a side face's entry
@@ -22,8 +23,8 @@
 // where the ray reaches h/2 within half a cell of a side face (the centre's ray crosses half a
 // cell more: T 0.21 instead of 0.54 beside a fog layer, a QA case).
 // The outer layers of every light's tau_rho and of the density are gathered on all ranks once
-// ((lights + 1) (nx ny + 2 (nx + ny) nz) values), so a shadow continues past the footprint and
-// past the columns a rank owns.
+// (about (lights + 1) (2 nx ny + 2 (nx + ny) nz) values), so a shadow continues past the
+// footprint and past the columns a rank owns.
 // The rank owning the hit point's (x, y) column at k = 0 (hit point clamped into the
 // footprint) shades a pixel; the others do not, so each ground pixel is shaded exactly once.
 // The constructor is collective (the gathers); shade() is not.
@@ -52,13 +53,15 @@ public:
     // (albedo_b / π) Σ_l E0_{l,b} max(0, -w_l·z); 0 without a ground.
     double radiance_bound(int b) const;
 
-    // Values the constructor gathers on every rank for a grid of n cells (per field: the bottom
-    // layer and the four side layers), for the memory estimate.
+    // Values the constructor gathers on every rank for a grid of n cells per field (the bottom
+    // and top layers and the four side layers; the light depths leave out the top), for the
+    // memory estimate.
     static double outer_layer_values(const Int3& n);
 
     // One field's outer cell layers, the same on every rank.
     struct OuterLayers {
         std::vector<double> bottom;               // k = 0: [j][i]
+        std::vector<double> top;                  // k = nz - 1: [j][i] (the density's only)
         std::array<std::vector<double>, 4> side;  // x-, x+, y-, y+: [k][t], t along the face
     };
 

@@ -311,14 +311,6 @@ void Scene::validate() const {
                             "scene has {} [[optics]] tables: give 1 or 3, or set output.image = false",
                             nbands()));
         const double h = grid.h();
-        // With a ground background a view of the ground alone (a shadow beyond the domain) is
-        // a picture too.
-        const bool ground = background.kind == BackgroundSpec::Kind::ground;
-        require(camera_sees_domain(camera, grid) || (ground && camera_sees_ground(camera, grid)),
-                fmt::format("camera.look_at: the camera looks at nothing: the domain [0, {:.4g}] x [0, {:.4g}] x "
-                            "[0, {:.4g}] m{} is outside its field of view (check camera.position, camera.look_at, "
-                            "camera.fov and units)",
-                            grid.n[0] * h, grid.n[1] * h, grid.n[2] * h, ground ? " and the ground" : ""));
         // The ground is the plane z = 0 seen from above (the ray caster shades it, Monte Carlo's
         // image leaves it black): a camera under it saw the medium through it.
         const double z = camera_world(camera, grid, camera.position).z;
@@ -327,6 +319,14 @@ void Scene::validate() const {
                             "the ground is the plane z = 0, seen from above): raise the camera or set "
                             "background.kind = \"color\"",
                             z));
+        // With a ground background a view of the ground alone (a shadow beyond the domain) is
+        // a picture too.
+        const bool ground = background.kind == BackgroundSpec::Kind::ground;
+        require(camera_sees_domain(camera, grid) || (ground && camera_sees_ground(camera, grid)),
+                fmt::format("camera.look_at: the camera looks at nothing: the domain [0, {:.4g}] x [0, {:.4g}] x "
+                            "[0, {:.4g}] m{} is outside its field of view (check camera.position, camera.look_at, "
+                            "camera.fov and units)",
+                            grid.n[0] * h, grid.n[1] * h, grid.n[2] * h, ground ? " and the ground" : ""));
     }
     require_bands(background.color, nbands(), "background.color");
     require(background.ground_albedo >= 0 && background.ground_albedo <= 1,

@@ -184,9 +184,9 @@ void check_low_sun_shadow(const Int3& proc_dims) {
 // u = (0.7, 0.7, 0.14) normalized; tau_rho = 1 in every cell): the ray from (-0.1, 8) enters
 // the x- face 0.02 cells up and reaches the bottom centres' height 2.5 cells inside, so it is
 // shadowed like the cells there; the ray from (-0.1, 15.9), by the y+ corner, enters as low and
-// leaves through the y+ face before that height, crossing only the half cell that is not
-// counted, so it is lit, as a point just inside the footprint there is (it was shadowed by the
-// face cell's tau: a sliver of shadow outside the footprint's corner).
+// leaves through the y+ face before that height, so it never reads tau_rho and crosses only
+// outer half cells, here empty: it is lit, as a point just inside the footprint there is (it
+// was shadowed by the face cell's tau: a sliver of shadow outside the footprint's corner).
 TEST(RenderGround, LowRaysBesideTheFootprintCrossOnlyWhatTheyReach) {
     Grid g;
     g.n = {16, 16, 16};
@@ -327,6 +327,16 @@ TEST(RenderGround, StairsSplitAlongX) {
 TEST(RenderGround, FogBesideTheFaceTheLightLeavesThrough) {
     const Vec3 behind{-kSunOverX.x, 0.0, kSunOverX.z};
     check_ground_depth(fog, false, behind, {0.6, 0.8, 1.2, 1.4, 2.0, 2.6}, {0, 0, 0});
+}
+// A roof: density only in the top cell layer (k = 15), a low sun toward -x (tan 5). Ground
+// points 78-79 cells beyond the x+ face: their rays enter the face within h/2 of the top (at
+// z_e = 15.55 and 15.7) and leave through the top without reaching the box of the cell
+// centres, crossing 1.5-2.25 cells of the top layer's upper half: their density must count
+// (the top layer was not gathered and read as empty beyond the face's own cells, i = 15: tau
+// half the exact value, a review finding).
+double roof(int, int k) { return k == 15 ? 1.0 : 0.0; }
+TEST(RenderGround, RaysUnderTheTopCrossTheRoof) {
+    check_ground_depth(roof, false, normalized(Vec3{-5.0, 0.0, 1.0}), {93.75, 94.5}, {0, 0, 0});
 }
 TEST(RenderGround, ShadowBeyondASideFace) {
     const Vec3 behind{-kSunOverX.x, 0.0, kSunOverX.z};
