@@ -99,11 +99,20 @@ public:
                                   {"unpropagated_W", r.remaining},
                                   {"truncated_W", r.truncated},
                                   {"unpropagated_W_per_iteration", r.remaining_history},
-                                  {"tail", opt_.tail},
+                                  {"tail", r.dsa_diverged_max_U.empty() ? opt_.tail : std::string("diffusion")},
+                                  {"dsa_diverged_max_U_relative", r.dsa_diverged_max_U},
                                   {"tail_geometric_factor", r.tail_factor},
                                   {"tail_diffusion_solver_iterations", r.tail_solver_iterations},
                                   {"dsa_corrections", r.dsa_corrections},
                                   {"dsa_solver_iterations", r.dsa_solver_iterations}});
+                if (d.rank() == 0 && !r.dsa_diverged_max_U.empty())
+                    log::warn("lpm {} {}: DSA diverged (max |U| {:.3g} of the first-scatter maximum after round {}, "
+                              "{:.3g} after round {}: its P1 corrections are not consistent with the maps on "
+                              "optically thick cells at this albedo); solved again with model.lpm.tail = "
+                              "\"diffusion\", set it to skip the failed start",
+                              band_names.size() == 1 ? "band" : "bands", fmt::join(band_names, ", "),
+                              r.dsa_diverged_max_U.end()[-2], r.dsa_diverged_max_U.size() - 1,
+                              r.dsa_diverged_max_U.back(), r.dsa_diverged_max_U.size());
                 if (d.rank() == 0)
                     log::info("lpm {} {} ({}): {} iterations, max U {:.3g} of the first-scatter maximum, {:.3g} s per "
                               "map sweep, unpropagated {:.3g} of the scattered power",

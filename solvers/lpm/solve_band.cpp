@@ -165,6 +165,21 @@ BandResult solve_sources(const Decomposition& d, const Medium& m, const LightTra
         r.remaining_history.push_back(global_sum(left, d.comm()));
         log::debug("lpm: iteration {}: max U / initial {:.3e}, unpropagated power {:.4g} W", r.iterations,
                    r.max_U.back(), r.remaining_history.back());
+        // DSA diverges where its P1 correction is not consistent with the maps: on optically thick
+        // cells at high albedo it over-corrects and max |U| grows from round to round (a box of
+        // 20 optical depths per cell at albedo 0.999: 270, 2887, 3923 times the first-scatter
+        // maximum, fluence_diffuse 1145 where Monte Carlo gives 2.7, negative energies). Healthy
+        // solves shrink it every round after the first correction (all study scenes). The band is
+        // then solved again with the plain P1 tail, which these cells do not destabilize, and
+        // the result says so (the caller warns). max_U is a global max: every rank decides alike.
+        if (dsa && r.max_U.size() >= 2 && r.max_U.back() > r.max_U[r.max_U.size() - 2]) {
+            LpmOptions plain = opt;
+            plain.tail = "diffusion";
+            BandResult again = solve_sources(d, m, light, bo, strength, plain, ang, progress, progress_offset, report,
+                                             sources);
+            again.dsa_diverged_max_U = r.max_U;
+            return again;
+        }
         if (r.max_U.back() < opt.epsilon) break;
     }
 

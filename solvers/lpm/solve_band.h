@@ -60,6 +60,9 @@ struct BandResult {
     int tail_solver_iterations = 0;  // diffusion tail: linear-solver iterations
     int dsa_corrections = 0;         // tail "dsa": P1 corrections fed back (one per round but the last)
     int dsa_solver_iterations = 0;   // their linear-solver iterations, summed
+    // Tail "dsa" only: when max |U| grew from one round to the next (DSA diverging), its history
+    // up to there; this result is then the solve with tail "diffusion" (solve_sources).
+    std::vector<double> dsa_diverged_max_U;
 };
 
 // The map order of one iteration: faces -Z, +Z, +X, -X, +Y, -Y.
