@@ -247,8 +247,11 @@ void read_sun(const TableReader& t, SunSpec& s) {
     t.read_per_band("irradiance", s.irradiance);
     // Normalize; a vector already of unit length (to round-off) is kept bit for bit, so that
     // writing and reading a scene gives the same numbers.
-    const double len = norm(s.direction);
-    if (std::isfinite(len) && len > 0 && std::abs(len - 1.0) > 1e-12) s.direction = s.direction / len;
+    // Any finite non-zero vector: normalized_any_scale neither underflows (1e-200) nor overflows.
+    const Vec3& w = s.direction;
+    const bool finite_nonzero = std::isfinite(w.x) && std::isfinite(w.y) && std::isfinite(w.z) &&
+                                (w.x != 0 || w.y != 0 || w.z != 0);
+    if (finite_nonzero && std::abs(norm(w) - 1.0) > 1e-12) s.direction = normalized_any_scale(w);
 }
 
 // [[sources]]: boxes of volume emission (lo, hi in the grid's unit; power per band, W/m³).

@@ -112,9 +112,9 @@ public:
         const int rounds = (opt_.batches + ranks - 1) / ranks;
         const int last = opt_.batches - (rounds - 1) * ranks;  // batches of the last round
         const int better = std::min(rounds * ranks, MonteCarloOptions::kMaxBatches);
-        log::warn("model.montecarlo.batches = {} on {} ranks: a rank traces one batch per round, so {} ranks "
+        log::warn("model.montecarlo.batches = {} on {} ranks: a rank traces one batch per round, so {} {} "
                   "trace nothing{} and the ranks trace {:.0f}% of the time; {}",
-                  opt_.batches, ranks, ranks - last, rounds == 1 ? "" : fmt::format(" in the last of {} rounds", rounds),
+                  opt_.batches, ranks, ranks - last, ranks - last == 1 ? "rank" : "ranks", rounds == 1 ? "" : fmt::format(" in the last of {} rounds", rounds),
                   100.0 * busy,
                   better > opt_.batches
                       ? fmt::format("batches = {} (a multiple of the ranks) traces the same photons with every "

@@ -18,12 +18,19 @@ public:
     nlohmann::json options() const override { return options_json(opt_); }
 
     void solve(const SolveContext& ctx, DiffuseSolution& out) override {
+        out = DiffuseSolution{};
+        if (ctx.light.lights.empty()) {
+            // No light (sun off, no sky; the pipeline has warned): nothing to blur, every fluence
+            // is zero and the image shows the background, as in the other models.
+            for (int b = 0; b < ctx.medium.nbands(); ++b) out.fluence.emplace_back(ctx.decomp.local(), 1, 1, 0.0);
+            source_.reset();
+            return;
+        }
         {
             ScopedTimer t(ctx.report, "psf_pyramid");
             source_ = std::make_unique<psf::PsfSource>(ctx, opt_);
         }
         ScopedTimer t(ctx.report, "psf_fluence");
-        out = DiffuseSolution{};
         source_->fluence(ctx.medium, ctx.decomp, out.fluence);
         auto& v = ctx.report.values()["psf"];
         v["levels"] = source_->pyramid().size();

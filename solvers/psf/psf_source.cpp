@@ -107,9 +107,7 @@ PsfSource::PsfSource(const SolveContext& ctx, const PsfOptions& opt)
     }
     ngroups_ = static_cast<int>(group_sigma.size());
     group_sigma_ = group_sigma;
-    check_collective(d.comm(), nl > 0,
-                     "model psf: the scene has no light to blur (sun disabled, no sky); enable [sun] or "
-                     "give sky.radiance");
+    check_collective(d.comm(), nl > 0, "model psf: PsfSource needs a light term (PsfModel::solve handles none)");
     check_light_volumes(nl, m.bands);  // the same on every rank
     warn_if_cells_thick(d, m);
     check_collective(d.comm(), static_cast<int>(ctx.light.tau_rho.size()) == nl,

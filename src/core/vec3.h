@@ -1,6 +1,7 @@
 // A small 3-vector of doubles for geometry (directions, positions in metres).
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 
 namespace nimbus {
@@ -25,5 +26,11 @@ inline Vec3 cross(const Vec3& a, const Vec3& b) {
 }
 inline double norm(const Vec3& v) { return std::sqrt(dot(v, v)); }
 inline Vec3 normalized(const Vec3& v) { return v / norm(v); }
+// The unit vector along v for any finite non-zero v: scaled by its largest component first, so
+// that |v|² can neither underflow (1e-200) nor overflow (1e200). NaN components give NaN.
+inline Vec3 normalized_any_scale(const Vec3& v) {
+    const double m = std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)});
+    return normalized(v / m);
+}
 
 }  // namespace nimbus

@@ -284,7 +284,8 @@ void Scene::validate() const {
                             "thickness is beyond single precision ({:.3g})",
                             o.name, medium.density * o.sigma_t * grid.h(), kFloatMax));
     if (sun.enabled) {
-        require(norm(sun.direction) > 0 && std::isfinite(norm(sun.direction)),
+        const Vec3& w = sun.direction;  // any scale: normalized on load (lights.cpp)
+        require(std::isfinite(w.x) && std::isfinite(w.y) && std::isfinite(w.z) && (w.x != 0 || w.y != 0 || w.z != 0),
                 "sun.direction must be a non-zero finite vector");
         require_bands(sun.irradiance, nbands(), "sun.irradiance");
     }

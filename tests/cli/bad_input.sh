@@ -164,10 +164,6 @@ if [ "$np" -eq 1 ]; then
   SUB=info expect_error "Monte Carlo replicates the 2048x2048x1024 grid on every rank" "${small[@]}" --ranks 64 \
     --set 'model.name="montecarlo"' --set "grid.n=[2048,2048,1024]"
 fi
-# psf needs a light to blur: a clear message, not its internal volume count.
-if "$nimbus" info --set "grid.n=[8,8,8]" 2>&1 | grep -q "models in this build:.*psf"; then
-  expect_error "model psf: the scene has no light to blur" "${small[@]}" --set 'model.name="psf"' --set "sun.enabled=false" --set "sky.radiance=[]"
-fi
 # psf's own pass needs slabs along z; the message names psf, not the (exact) light pass.
 if [ "$np" -gt 1 ] && "$nimbus" info --set "grid.n=[8,8,8]" 2>&1 | grep -q "models in this build:.*psf"; then
   expect_error "model psf needs slabs along z" "${small[@]}" --set 'model.name="psf"' --set "grid.process_grid=[2,1,1]"

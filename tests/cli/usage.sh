@@ -146,6 +146,10 @@ check "run: a killed run's temporary is said" 0 "\[warning\] 1 temporary file of
   run "${small[@]}" --set 'model.name="single"' --set output.image=false --out "$tmp/stale"
 # A run that shows nothing (no light, or no medium) runs, and says so once.
 check "run: no light warns" 0 "\[warning\] the scene has no light" run "${small[@]}" --set sun.enabled=false --set sky.radiance=0 --set output.image=false --out "$tmp/dark"
+# ... psf too (it used to refuse: "no light to blur"), with its image of the background.
+if "$nimbus" info --set "grid.n=[8,8,8]" 2>&1 | grep -q "models in this build:.*psf"; then
+  check "run: psf without light warns" 0 "\[warning\] the scene has no light" run "${small[@]}" --set 'model.name="psf"' --set sun.enabled=false --set sky.radiance=0 --out "$tmp/dark_psf"
+fi
 check "run: a sun below the horizon over a ground warns" 0 "\[warning\] sun.direction points upward" run "${small[@]}" --set 'model.name="single"' --set "sun.direction=[0.3,0.2,0.9]" --set 'background.kind="ground"' --set output.image=false --out "$tmp/below"
 check "run: no medium warns" 0 "\[warning\] the medium has no non-empty cells" run "${small[@]}" --set medium.density=0 --set output.image=false --out "$tmp/empty"
 

@@ -328,6 +328,18 @@ TEST(SceneLoad, UnitsAndIntegersForFloats) {
     EXPECT_EQ(load_scene_string("[grid]\nunit = \"custom\"\nunit_scale = 0.3048\n[[optics]]\n", "u.toml").grid.h(), 0.3048);
 }
 
+// sun.direction is any finite non-zero vector: one whose square length under- or overflows a
+// double (QA: [1e-200, 0, -1e-200] was refused as "not a non-zero finite vector") is normalized.
+TEST(SceneLoad, SunDirectionOfAnyScale) {
+    for (const char* w : {"[1e-200, 0, -1e-200]", "[1e200, 0, -1e200]", "[3, 0, -3]"}) {
+        const Scene s = load_scene_string(std::string("[[optics]]\n[sun]\ndirection = ") + w + "\n", "sun.toml");
+        EXPECT_NEAR(s.sun.direction.x, std::sqrt(0.5), 1e-15) << w;
+        EXPECT_EQ(s.sun.direction.y, 0.0) << w;
+        EXPECT_NEAR(s.sun.direction.z, -std::sqrt(0.5), 1e-15) << w;
+    }
+    EXPECT_THROW(load_scene_string("[[optics]]\n[sun]\ndirection = [0, 0, 0]\n", "sun.toml"), Error);
+}
+
 TEST(SceneLoad, DensityFileResolvesAgainstTheSceneFolder) {
     test::ScratchDir dir("resolve");
     if (test::world_rank() == 0) {

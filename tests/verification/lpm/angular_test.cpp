@@ -88,7 +88,9 @@ TEST(LpmAngular, HenyeyGreensteinFormFactors) {
             }
             EXPECT_LT(worst_row, 1e-14);
             EXPECT_LT(worst_g, k == 3 ? err_prev / 3 : err_prev + 1e-12) << "g " << g << " k " << k;
-            if (k == 9) EXPECT_LT(worst_g, 0.02) << "g " << g;
+            if (k == 9) {
+                EXPECT_LT(worst_g, 0.02) << "g " << g;
+            }
             err_prev = worst_g;
             if (test::world_rank() == 0) std::printf("    g %.2f  k %d: max |mean cosine - g| over map bins %.4f\n", g, k, worst_g);
         }
