@@ -207,31 +207,20 @@ void add_to_bands(const BandGroup& group, size_t r, const dom::BandProblem& p, c
 }
 
 // Negative fluence_diffuse (the truncated phase function's negative lobes: strong backscattering,
-// or a forward peak without delta-M; solvers/dom/README.md) below -kNegativeShare of a band's
-// largest value: counted into the report (negative_cells, min_fluence per band) and a warning
-// on rank 0. The exact answer is never negative. Collective.
+// or a forward peak without delta-M; solvers/dom/README.md) below -kNegativeFluenceShare of a
+// band's largest value: into the report (negative_fluence per band) and a warning on rank 0.
+// Collective.
 void report_negative_fluence(const Decomposition& d, const std::vector<BandOptics>& bands, const DomOptions& opt,
                              const DiffuseSolution& out, nlohmann::json& rec) {
-    constexpr double kNegativeShare = 1e-3;
-    for (size_t b = 0; b < bands.size(); ++b) {
-        const Field<double>& fl = out.fluence[b];
-        double ext[2] = {0.0, 0.0};  // -min, max
-        for_each_cell(fl.owned(), [&](int i, int j, int k) {
-            ext[0] = std::max(ext[0], -fl(i, j, k));
-            ext[1] = std::max(ext[1], fl(i, j, k));
-        });
-        MPI_Allreduce(MPI_IN_PLACE, ext, 2, MPI_DOUBLE, MPI_MAX, d.comm());
-        if (ext[0] <= kNegativeShare * ext[1]) continue;
-        std::int64_t count = 0;
-        for_each_cell(fl.owned(), [&](int i, int j, int k) { count += fl(i, j, k) < -kNegativeShare * ext[1]; });
-        MPI_Allreduce(MPI_IN_PLACE, &count, 1, MPI_INT64_T, MPI_SUM, d.comm());
-        rec["negative_fluence"][bands[b].name] = {{"cells", count}, {"min", -ext[0]}, {"max", ext[1]}};
+    for (const NegativeFluence& n : find_negative_fluence(d, bands, out)) {
+        rec["negative_fluence"][n.band] = n.json();
+        const BandOptics& bo = *std::find_if(bands.begin(), bands.end(), [&](const BandOptics& o) { return o.name == n.band; });
         if (d.rank() == 0)
             log::warn("dom (band {}): fluence_diffuse is below -{:g} of its largest value {:.3g} in {} cells, down to "
                       "{:.3g}: the phase function truncated at legendre_order {} has negative lobes (g = {:g}{}); {}",
-                      bands[b].name, kNegativeShare, ext[1], count, -ext[0], opt.legendre_order, bands[b].g,
+                      n.band, kNegativeFluenceShare, n.max, n.cells, n.min, opt.legendre_order, bo.g,
                       opt.delta_m ? "" : ", without delta-M",
-                      !opt.delta_m && bands[b].g > 0.0
+                      !opt.delta_m && bo.g > 0.0
                           ? "model.dom.delta_m = true (the default) takes the forward peak out of it"
                           : "a higher order with legendre_order = N - 1 (e.g. order = 8, legendre_order = 7) "
                             "reduces them");

@@ -1,5 +1,9 @@
 #include "src/model/model.h"
 
+#include <mpi.h>
+
+#include <algorithm>
+
 #include <cmath>
 
 #include "src/physics/phase.h"
@@ -88,6 +92,26 @@ DiffuseSolution zero_solution(const Decomposition& d, int nbands) {
     DiffuseSolution s;
     for (int b = 0; b < nbands; ++b) s.fluence.emplace_back(d.local(), 1, 1, 0.0);
     return s;
+}
+
+std::vector<NegativeFluence> find_negative_fluence(const Decomposition& d, const std::vector<BandOptics>& bands,
+                                                   const DiffuseSolution& out, double share) {
+    std::vector<NegativeFluence> found;
+    for (size_t b = 0; b < bands.size() && b < out.fluence.size(); ++b) {
+        const Field<double>& fl = out.fluence[b];
+        double ext[2] = {0.0, 0.0};  // -min, max
+        for_each_cell(fl.owned(), [&](int i, int j, int k) {
+            ext[0] = std::max(ext[0], -fl(i, j, k));
+            ext[1] = std::max(ext[1], fl(i, j, k));
+        });
+        MPI_Allreduce(MPI_IN_PLACE, ext, 2, MPI_DOUBLE, MPI_MAX, d.comm());
+        if (ext[0] <= share * ext[1]) continue;
+        std::int64_t count = 0;
+        for_each_cell(fl.owned(), [&](int i, int j, int k) { count += fl(i, j, k) < -share * ext[1]; });
+        MPI_Allreduce(MPI_IN_PLACE, &count, 1, MPI_INT64_T, MPI_SUM, d.comm());
+        found.push_back({bands[b].name, count, -ext[0], ext[1]});
+    }
+    return found;
 }
 
 }  // namespace nimbus

@@ -57,6 +57,20 @@ struct DiffuseSolution {
     std::vector<Field<double>> fluence_stderr;  // per band standard error (Monte Carlo), or empty
 };
 
+// fluence_diffuse below -share of its band's largest value (the exact answer is never negative;
+// a truncated phase function or a signed correction can make a model's so): per such band its
+// name, the cells below, the least and the largest value. Collective.
+struct NegativeFluence {
+    std::string band;
+    std::int64_t cells = 0;
+    double min = 0.0, max = 0.0;
+    nlohmann::json json() const { return {{"cells", cells}, {"min", min}, {"max", max}}; }
+};
+inline constexpr double kNegativeFluenceShare = 1e-3;
+std::vector<NegativeFluence> find_negative_fluence(const Decomposition& d, const std::vector<BandOptics>& bands,
+                                                   const DiffuseSolution& out,
+                                                   double share = kNegativeFluenceShare);
+
 struct SolveContext {
     const Scene& scene;
     const Decomposition& decomp;
