@@ -22,7 +22,7 @@ public:
         if (ctx.light.lights.empty()) {
             // No light (sun off, no sky; the pipeline has warned): nothing to blur, every fluence
             // is zero and the image shows the background, as in the other models.
-            for (int b = 0; b < ctx.medium.nbands(); ++b) out.fluence.emplace_back(ctx.decomp.local(), 1, 1, 0.0);
+            out = zero_solution(ctx.decomp, ctx.medium.nbands());
             source_.reset();
             return;
         }
