@@ -118,25 +118,38 @@ bool some_pixel_sees(const Camera& cam, const Grid& grid) {
     return false;
 }
 
-// The scene-side check restates the pinhole model on the spec; on random views around and inside
-// the domain it must give the answer of this camera's own rays, every pixel's centre traced.
-TEST(Camera, SceneCheckThatTheCameraSeesTheDomainAgrees) {
+// The domain of the random views below: 10 x 5 x 20 m.
+GridSpec views_grid() {
     GridSpec gs;
     gs.n = {20, 10, 40};
     gs.cell_size = 0.5;
-    const Grid grid = make_grid(gs);
-    std::mt19937 rng(12345);
+    return gs;
+}
+
+// A random view around and inside views_grid()'s domain (domain units): position, view direction
+// (its z scaled by view_z), up, field of view and image size.
+CameraSpec random_view(std::mt19937& rng, double view_z = 1.0) {
     std::uniform_real_distribution<double> pos(-2.0, 3.0), dir(-1.0, 1.0), fov(5.0, 120.0);
     std::uniform_int_distribution<int> side(1, 120);
+    CameraSpec c;
+    c.position = {pos(rng), pos(rng), pos(rng)};
+    c.look_at = c.position + Vec3{dir(rng), dir(rng), view_z * dir(rng)};
+    c.up = {dir(rng), dir(rng), 1.0};
+    c.fov_deg = fov(rng);
+    c.width = side(rng);
+    c.height = side(rng);
+    return c;
+}
+
+// The scene-side check restates the pinhole model on the spec; on random views around and inside
+// the domain it must give the answer of this camera's own rays, every pixel's centre traced.
+TEST(Camera, SceneCheckThatTheCameraSeesTheDomainAgrees) {
+    const GridSpec gs = views_grid();
+    const Grid grid = make_grid(gs);
+    std::mt19937 rng(12345);
     int seen = 0, unseen = 0;
     for (int trial = 0; trial < 600; ++trial) {
-        CameraSpec c;
-        c.position = {pos(rng), pos(rng), pos(rng)};
-        c.look_at = c.position + Vec3{dir(rng), dir(rng), dir(rng)};
-        c.up = {dir(rng), dir(rng), 1.0};
-        c.fov_deg = fov(rng);
-        c.width = side(rng);
-        c.height = side(rng);
+        CameraSpec c = random_view(rng);
         c.domain_units = trial % 2 == 0;
         if (!c.domain_units) {  // the same views in metres
             c.position = Vec3{c.position.x * 10, c.position.y * 5, c.position.z * 20};
@@ -185,22 +198,12 @@ TEST(Camera, SmallDomainsInTheImageAreSeenWhereAPixelCentreMeetsThem) {
 // domain): camera_sees_ground must say whether some pixel's centre ray goes down from above the
 // ground, as this camera's own rays do, on random views.
 TEST(Camera, SceneCheckThatTheCameraSeesTheGroundAgrees) {
-    GridSpec gs;
-    gs.n = {20, 10, 40};
-    gs.cell_size = 0.5;
+    const GridSpec gs = views_grid();
     const Grid grid = make_grid(gs);
     std::mt19937 rng(777);
-    std::uniform_real_distribution<double> pos(-2.0, 3.0), dir(-1.0, 1.0), fov(5.0, 120.0);
-    std::uniform_int_distribution<int> side(1, 120);
     int seen = 0, unseen = 0;
     for (int trial = 0; trial < 400; ++trial) {
-        CameraSpec c;
-        c.position = {pos(rng), pos(rng), pos(rng)};
-        c.look_at = c.position + Vec3{dir(rng), dir(rng), 0.3 * dir(rng)};
-        c.up = {dir(rng), dir(rng), 1.0};
-        c.fov_deg = fov(rng);
-        c.width = side(rng);
-        c.height = side(rng);
+        const CameraSpec c = random_view(rng, 0.3);  // flatter views: near the horizon
         const Camera cam(c, grid);
         bool down = false;
         for (int y = 0; y < cam.height() && !down; ++y)
