@@ -191,6 +191,16 @@ void info(const RunOptions& opts, int plan_ranks) {
                              "'montecarlo' model them ('montecarlo' is the reference; 'diffusion' has no "
                              "transport across empty cells); optical depth: {}",
                              s.sources.size(), tau < 0.3 ? "thin" : tau < 3 ? "intermediate" : "thick");
+    // Thick CELLS are a matter of resolution, whatever the scene's depth (the diffusion model warns
+    // from the same 2 optical depths per cell: solvers/diffusion/README.md).
+    double sigma_max = 0.0;
+    for (const auto& b : s.bands) sigma_max = std::max(sigma_max, b.sigma_t);
+    const double cell_tau = sigma_max * rho_max * s.grid.h();
+    if (filled > 0 && cell_tau > 2.0)
+        advice += fmt::format("; cells up to {:.3g} optical depths thick: 'diffusion' and lpm's P1 tail come out "
+                              "too bright there (2x Monte Carlo at 5 per cell), 'dom' holds; refine the grid to "
+                              "about 1 per cell",
+                              cell_tau);
     say(comm, "models in this build: {}; this scene is {}", fmt::format("{}", fmt::join(available_models(), ", ")), advice);
     say(comm, "model asked for: '{}'", s.model.name);
     if (plan)

@@ -158,6 +158,8 @@ box=(--set "grid.n=[8,8,8]" --set 'medium.kind="box"' --set "medium.box_lo=[0.25
 check "run: lpm's negative fluence warns" 0 "\[warning\] lpm (band gray): fluence_diffuse is below -0.001 of its largest value" \
   run "${box[@]}" --set 'model.name="lpm"' --out "$tmp/lpm_negative"
 # Diffusion on cells of several optical depths is far too bright: said (QA: 2.1x Monte Carlo's total at 5 per cell).
+check "info: thick cells are said" 0 "cells up to 5 optical depths thick: 'diffusion' and lpm's P1 tail come out too bright" \
+  info "${box[@]}" --set grid.cell_size=1 --set 'optics=[{name="gray",sigma_t=5.0,albedo=0.999,g=0.0}]'
 check "run: diffusion on thick cells warns" 0 "\[warning\] model diffusion: cells up to 5 optical depths thick" \
   run "${box[@]}" --set grid.cell_size=1 --set 'optics=[{name="gray",sigma_t=5.0,albedo=0.999,g=0.0}]' --set 'model.name="diffusion"' --out "$tmp/thick"
 check "run: no medium warns" 0 "\[warning\] the medium has no non-empty cells" run "${small[@]}" --set medium.density=0 --set output.image=false --out "$tmp/empty"
