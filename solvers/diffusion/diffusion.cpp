@@ -124,7 +124,7 @@ public:
             diffusion::DiffusionProblem p;
             {
                 ScopedTimer t(ctx.report, "sources");
-                p = diffusion::make_problem(d, m, ctx.light, sources, group, opt_.delta_scaling);
+                p = diffusion::make_problem(d, m, ctx.light, sources, group, opt_.delta_scaling, &ctx.report);
             }
             const auto res = [&] {
                 if (linear) return diffusion::solve_diffusion(d, p, solve_opt, ctx.report);

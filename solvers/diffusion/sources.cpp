@@ -2,7 +2,12 @@
 
 #include <cmath>
 #include <numbers>
+#include <optional>
+#include <string>
 #include <vector>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "solvers/diffusion/delta_scaling.h"
 #include "src/core/halo.h"
@@ -11,7 +16,7 @@ namespace nimbus::diffusion {
 
 DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const LightTransport& light,
                               const std::vector<VolumeSource>& sources, const BandGroup& group,
-                              bool delta_scaling) {
+                              bool delta_scaling, Report* report) {
     const BandOptics& o = group.optics;
     const DeltaScaledOptics s = delta_scale(o.sigma_t, o.albedo, o.g, delta_scaling);
     DiffusionProblem p;
@@ -31,6 +36,16 @@ DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const Lig
     // Per unit density and unit E0 T': Q0' = q0, Q1' = g' q0 w, G = g' q0 w / sigma_tr.
     const double q0 = o.sigma_t * o.albedo * (1.0 - s.f) / (4.0 * std::numbers::pi);
     const size_t nl = light.lights.size();
+    const FirstScatterMeans means = [&] {
+        std::optional<ScopedTimer> timer;  // under "sources" when the model calls
+        if (report) timer.emplace(*report, "first_scatter_bound");
+        return FirstScatterMeans(light, d, m.rho, s.sigma_t, m.grid.h);
+    }();
+    if (report) {
+        std::vector<std::string> names;
+        for (const BandUse& use : group.bands) names.push_back(m.bands[static_cast<size_t>(use.band)].name);
+        means.report(fmt::format("{}", fmt::join(names, ", ")), *report);
+    }
     for (const std::vector<double>& weight : group.rhs_weights) {
         Field<double> Q0(d.local(), 0, 1, 0.0), G(d.local(), 1, 3, 0.0);
         for_each_cell(d.local(), [&](int i, int j, int k) {
@@ -40,8 +55,7 @@ DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const Lig
             for (size_t l = 0; l < nl; ++l) {
                 if (weight[l] == 0.0) continue;
                 // The cell's mean of the (delta-scaled) T: the finite-volume source of the cell.
-                const double et = weight[l] * light.transmittance_mean(d, m.rho, static_cast<int>(l), s.sigma_t,
-                                                                       m.grid.h, i, j, k);
+                const double et = weight[l] * means(static_cast<int>(l), i, j, k);
                 e += et;
                 ew += light.lights[l].w * et;
             }

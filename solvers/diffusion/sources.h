@@ -8,7 +8,8 @@
 //     it adds to Q0 only and the delta-Eddington split leaves it alone)
 // for each right-hand side (weights over the terms: the lights, then `sources`; band_groups.h). G is the first-scatter flux per 4π; it depends on the
 // density only through T' (rho cancels), so it is continuous across density jumps.
-// Collective over d.comm() (halo exchange of G).
+// The lights' cell means of T' are FirstScatterMeans (src/model/model.h), whose bound it
+// reports into report, if given. Collective over d.comm() (halo exchange of G).
 #pragma once
 
 #include "src/physics/band_groups.h"
@@ -20,7 +21,7 @@ namespace nimbus::diffusion {
 
 DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const LightTransport& light,
                               const std::vector<VolumeSource>& sources, const BandGroup& group,
-                              bool delta_scaling = true);
+                              bool delta_scaling = true, Report* report = nullptr);
 
 // The part of the diffuse fluence that the delta-Eddington scaling keeps in the reduced
 // incident field is Σ_lights E0[band] (T' - T) (W/m²), its flux Σ E0 (T' - T) w_light.

@@ -65,8 +65,8 @@ void make_source_moments(const BandProblem& p, const std::vector<double>& chi, c
     });
 }
 
-void add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, const LightTransport& lt,
-                       const BandOptics& o, const std::vector<double>& E0, const AngularSet& ang) {
+FirstScatterMeans add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, const LightTransport& lt,
+                                    const BandOptics& o, const std::vector<double>& E0, const AngularSet& ang) {
     std::vector<int> lit;  // the lights of lt this problem carries
     for (size_t l = 0; l < lt.lights.size(); ++l)
         if (E0[l] != 0.0) lit.push_back(static_cast<int>(l));
@@ -94,6 +94,7 @@ void add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, 
         const size_t nd = nl > 0 ? P.size() / static_cast<size_t>(nl) : 0;
         for (size_t q = 0; q < P.size(); ++q) P[q] /= norm[q / nd];
     }
+    const FirstScatterMeans means(lt, d, m.rho, scale * o.sigma_t, m.grid.h);
     for (int l = 0; l < nl; ++l) {
         const int t = lit[static_cast<size_t>(l)];
         const auto& light = lt.lights[static_cast<size_t>(t)];
@@ -104,20 +105,20 @@ void add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, 
             // The source integrates over the cell: the cell's mean of the scaled beam's T (only
             // where the cell scatters: 88% of the default cloud's cells do not).
             if (p.sigma_s(i, j, k) != 0.0)
-                p.amp(i, j, k, l) = p.sigma_s(i, j, k) * e0 *
-                                    lt.transmittance_mean(d, m.rho, t, scale * o.sigma_t, m.grid.h, i, j, k);
+                p.amp(i, j, k, l) = p.sigma_s(i, j, k) * e0 * means(t, i, j, k);
             const double fwd = e0 * (Ts - T);
             p.forward_fluence(i, j, k) += fwd;
             for (int c = 0; c < 3; ++c) p.forward_flux(i, j, k, c) += fwd * light.w[c];
         });
     }
+    return means;
 }
 
-void add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, const LightTransport& lt, int b,
-                       const AngularSet& ang) {
+FirstScatterMeans add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, const LightTransport& lt,
+                                    int b, const AngularSet& ang) {
     std::vector<double> E0;
     for (const DirectionalLight& light : lt.lights) E0.push_back(band_value(light.E0, b));
-    add_light_sources(p, d, m, lt, m.bands[static_cast<size_t>(b)], E0, ang);
+    return add_light_sources(p, d, m, lt, m.bands[static_cast<size_t>(b)], E0, ang);
 }
 
 }  // namespace nimbus::dom

@@ -65,12 +65,13 @@ inline BandProblem make_band_optics(const Medium& m, int b, const Box& own, cons
 
 // Adds the first-collision sources of the light terms of lt at strengths E0[l] (W/m², one per
 // light of lt; optics o as given to make_band_optics). Lights of strength 0 are left out
-// (p.nl counts the others), so a problem for the sky alone carries no sun term.
-void add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, const LightTransport& lt,
-                       const BandOptics& o, const std::vector<double>& E0, const AngularSet& ang);
+// (p.nl counts the others), so a problem for the sky alone carries no sun term. Collective;
+// returns the cell means of T it used (their bound's scales, for FirstScatterMeans::report).
+FirstScatterMeans add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, const LightTransport& lt,
+                                    const BandOptics& o, const std::vector<double>& E0, const AngularSet& ang);
 // The same at band b's strengths, E0[l] = the light's E0 in band b.
-void add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, const LightTransport& lt, int b,
-                       const AngularSet& ang);
+FirstScatterMeans add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, const LightTransport& lt,
+                                    int b, const AngularSet& ang);
 
 // The light terms of lt without the sky's direction bins ("sky[...]", src/physics/lights.h), for
 // DomOptions::sky = "boundary" (the sky then enters as boundary radiance). Copies the fields.

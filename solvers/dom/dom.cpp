@@ -315,7 +315,8 @@ void DiscreteOrdinates::solve(const SolveContext& ctx, DiffuseSolution& out) {
             dom::BandProblem p = dom::make_band_optics(m, group.optics, own, ang, opt_.delta_m);
             check_diamond_dsa(d, p);
             dom::add_light_sources(p, d, m, lights, group.optics,
-                                   std::vector<double>(weight.begin(), weight.begin() + static_cast<std::ptrdiff_t>(nl)), ang);
+                                   std::vector<double>(weight.begin(), weight.begin() + static_cast<std::ptrdiff_t>(nl)), ang)
+                .report(fmt::format("{}", fmt::join(band_names, ", ")), ctx.report);
             set_emission(p, sources, m.rho, weight, nl);
             sweeper.reset_reflections();
             sweeper.reset_periodic_planes();

@@ -65,6 +65,8 @@ BandResult solve_sources(const Decomposition& d, const Medium& m, const LightTra
     // First-scatter source, split over the coarse bins by the exact beam factors.
     Field<double> U(own, 1, nm, 0.0);
     double source = 0.0;
+    const FirstScatterMeans means(light, d, m.rho, bo.sigma_t, m.grid.h);
+    if (report) means.report(bo.name, *report);
     for (size_t l = 0; l < light.lights.size(); ++l) {
         const DirectionalLight& dl = light.lights[l];
         const double E0 = strength[l];
@@ -75,8 +77,7 @@ BandResult solve_sources(const Decomposition& d, const Medium& m, const LightTra
             // cell scatters.
             const double ks = kappa(i, j, k) * bo.albedo;
             if (ks == 0.0) return;
-            const double q = ks * E0 *
-                             light.transmittance_mean(d, m.rho, static_cast<int>(l), bo.sigma_t, m.grid.h, i, j, k);
+            const double q = ks * E0 * means(static_cast<int>(l), i, j, k);
             if (q == 0.0) return;
             source += q * V;
             double* u = &U(i, j, k);

@@ -6,6 +6,7 @@
 
 #include <cmath>
 
+#include "src/core/log.h"
 #include "src/physics/phase.h"
 
 namespace nimbus {
@@ -78,6 +79,60 @@ double LightTransport::transmittance_mean(const Decomposition& d, const Field<do
     double bound = 1.0;
     if (rc > 0.0) bound = std::min(bound, (std::abs(w[0]) + std::abs(w[1]) + std::abs(w[2])) / (sigma_t * rc * h));
     return std::min(mean, bound);
+}
+
+FirstScatterMeans::FirstScatterMeans(const LightTransport& lt, const Decomposition& d, const Field<double>& rho,
+                                     double sigma_t, double h)
+    : lt_(lt), d_(d), rho_(rho), sigma_t_(sigma_t), h_(h) {
+    const size_t nl = lt.lights.size();
+    const Box& dom = d.global();
+    const Box own = d.local();
+    std::vector<double> sums(2 * nl, 0.0);  // per light: taken, then what leaves the domain
+    for (size_t l = 0; l < nl; ++l) {
+        const Vec3& w = lt.lights[l].w;
+        const int light = static_cast<int>(l);
+        double taken = 0.0, out = 0.0;
+        for_each_cell(own, [&](int i, int j, int k) {
+            const double r = rho(i, j, k);
+            if (r > 0.0) taken += sigma_t * r * h * h * h * lt.transmittance_mean(d, rho, light, sigma_t, h, i, j, k);
+        });
+        for (int a = 0; a < 3; ++a) {
+            if (d.periodic(a) || w[a] == 0.0) continue;
+            // The face the light leaves by, if this rank owns cells on it.
+            const int layer = w[a] > 0.0 ? dom.hi[a] - 1 : dom.lo[a];
+            if (layer < own.lo[a] || layer >= own.hi[a]) continue;
+            for_each_cell(own.with_range(a, layer, layer + 1), [&](int i, int j, int k) {
+                if (rho(i, j, k) == 0.0) out += std::abs(w[a]) * h * h * lt.transmittance(light, sigma_t, i, j, k);
+            });
+        }
+        sums[l] = taken;
+        sums[nl + l] = out;
+    }
+    MPI_Allreduce(MPI_IN_PLACE, sums.data(), static_cast<int>(sums.size()), MPI_DOUBLE, MPI_SUM, d.comm());
+    for (size_t l = 0; l < nl; ++l) {
+        const Vec3& w = lt.lights[l].w;
+        double in = 0.0;  // through every cell of the faces the light enters by
+        for (int a = 0; a < 3; ++a)
+            if (!d.periodic(a)) in += std::abs(w[a]) * h * h * static_cast<double>(dom.cells() / dom.size(a));
+        const double lost = std::max(0.0, in - sums[nl + l]);
+        taken_.push_back(sums[l]);
+        lost_.push_back(lost);
+        // Above round-off only: a slab that absorbs the whole beam takes exactly what it loses.
+        scale_.push_back(sums[l] > lost * (1.0 + 1e-9) ? lost / sums[l] : 1.0);
+    }
+}
+
+void FirstScatterMeans::report(const std::string& band, Report& report) const {
+    for (size_t l = 0; l < scale_.size(); ++l) {
+        if (scale_[l] == 1.0) continue;
+        const std::string& name = lt_.lights[l].name;
+        report.values()["first_scatter_bound"][band][name] = {{"taken", taken_[l]}, {"lost", lost_[l]}};
+        if (scale_[l] < 0.99)
+            log::warn("first-scatter source of light '{}' in band '{}': the cells' means of T took {:.3g} W per W/m² "
+                      "where the beam loses at most {:.3g} in the domain (tau bends inside cells: grazing light over "
+                      "periodic x/y); scaled down by {:.3g}",
+                      name, band, taken_[l], lost_[l], scale_[l]);
+    }
 }
 
 double LightTransport::fluence_reduced(const Medium& m, int b, int i, int j, int k) const {
