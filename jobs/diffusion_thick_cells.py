@@ -1,0 +1,114 @@
+#!/usr/bin/env python3
+"""Why the diffusion model is too bright on optically thick cells, in one dimension
+(solvers/diffusion/README.md, "Optically thick cells").
+
+A slab of 4 cells under an overhead sun (E0 = 1, vacuum on both sides) is solved with the
+model's own scheme (diffusion_kernel.h: cell-centred P1, face D and G from the two cells,
+Marshak faces by ghost elimination, the first-scatter source Q0 = kappa a T / 4π integrated over
+each cell) and compared with the same P1 equation on 3000 cells. The only difference is the
+discretization, so the ratio of the totals of U is the scheme's error on thick cells.
+
+Two ways to place each cell's first-scatter source are compared:
+  box  the model's: the cell integral of Q0 at the cell centre. The light scattered within a
+       mean free path of the lit face sits half a cell under it, behind the half cell's
+       diffusion resistance h / (2D), and cannot get out.
+  exp  a candidate, not in the model: the cell's source is split between its centre and the
+       node on the lit side (the next cell's centre at h, or at a Marshak face the face at h/2,
+       whose share then leaves by h / (h + 4D) and enters the cell by 4D / (h + 4D)) by the
+       Green's function of -D u'' + sigma_a u between the two nodes, taken at the source's
+       centroid: the lit node gets sinh(k d) / sinh(k l), k = sqrt(sigma_a / D), d the
+       centroid's distance from the centre (l/2 · Langevin(kappa h / 2) for e^{-kappa z}),
+       l the node distance; k -> 0 gives the linear hat weights.
+The delta-Eddington rows solve with the model's scaled optics (delta_scaling.h).
+Usage: /usr/bin/python3 jobs/diffusion_thick_cells.py
+"""
+import numpy as np
+
+
+def tridiagonal_solve(lower, diag, upper, rhs):
+    """Thomas algorithm: lower[i] couples row i to i-1, upper[i] to i+1."""
+    n = len(rhs)
+    c = np.zeros(n)
+    d = np.zeros(n)
+    c[0] = upper[0] / diag[0]
+    d[0] = rhs[0] / diag[0]
+    for i in range(1, n):
+        m = diag[i] - lower[i] * c[i - 1]
+        c[i] = upper[i] / m if i < n - 1 else 0.0
+        d[i] = (rhs[i] - lower[i] * d[i - 1]) / m
+    x = np.zeros(n)
+    x[-1] = d[-1]
+    for i in range(n - 2, -1, -1):
+        x[i] = d[i] - c[i] * x[i + 1]
+    return x
+
+
+def solve_slab(ncell, depth, sigma_t, albedo, g, placement="box"):
+    """Total of U (W/m² per 4π, times m) over a slab `depth` metres thick of ncell cells."""
+    h = depth / ncell
+    kappa_tr = sigma_t * (1 - albedo * g)
+    D = 1 / (3 * kappa_tr)
+    sigma_a = sigma_t * (1 - albedo)
+    x = sigma_t * h  # optical thickness of a cell
+    top = np.arange(ncell) * h  # each cell's lit (upper) face
+    t_mean = np.exp(-sigma_t * top) * -np.expm1(-x) / x  # exact cell mean of T
+    q0 = sigma_t * albedo / (4 * np.pi) * t_mean
+    source = q0 * h  # per unit area
+    G = g * q0 / kappa_tr  # Q1 / kappa_tr, Q1 = g q0 w, w = +z (down)
+    placed = source.copy()
+    if placement == "exp":
+        k = np.sqrt(sigma_a / D)
+        d = 0.5 * h * (1 / np.tanh(x / 2) - 2 / x)  # centroid of e^{-sigma z} above the centre
+
+        def share(length):
+            return d / length if k * length < 1e-8 else np.sinh(k * d) / np.sinh(k * length)
+
+        for c in range(ncell):
+            if c > 0:
+                moved = source[c] * share(h)
+                placed[c] -= moved
+                placed[c - 1] += moved
+            else:
+                face = source[c] * share(h / 2)
+                placed[c] += -face + 4 * D * face / (h + 4 * D)
+    # Cell balance per unit area: Σ_faces D (U_P - U_N)/h + sigma_a h U_P = S - Σ_faces G_f n_out
+    lower = np.zeros(ncell)
+    upper = np.zeros(ncell)
+    diag = np.full(ncell, sigma_a * h)
+    rhs = placed.copy()
+    for c in range(ncell):
+        for nb, n_out in ((c - 1, -1), (c + 1, 1)):
+            if 0 <= nb < ncell:
+                diag[c] += D / h
+                if nb < c:
+                    lower[c] = -D / h
+                else:
+                    upper[c] = -D / h
+                rhs[c] -= 0.5 * (G[c] + G[nb]) * n_out
+            else:  # Marshak: diagonal 2D/(h + 4D), rhs (n·G) h/(h + 4D), n = -n_out
+                diag[c] += 2 * D / (h + 4 * D)
+                rhs[c] -= n_out * G[c] * h / (h + 4 * D)
+    return tridiagonal_solve(lower, diag, upper, rhs).sum() * h
+
+
+def main():
+    print("total U of 4 cells / total U of 3000 cells, slab of 4 kappa h, overhead sun")
+    print(f"{'optics':>34} {'kappa h':>8} {'box':>7} {'exp':>7}")
+    cases = [(0.999, 0.0, False), (0.9, 0.0, False), (0.5, 0.0, False),
+             (0.999, 0.85, True), (0.9, 0.85, True), (0.99, 0.5, True)]
+    for albedo, g, scaled in cases:
+        sigma_t, a, gg = 1.0, albedo, g
+        if scaled:  # delta-Eddington: f = g², the model's default for the sun's source
+            f = g * g
+            sigma_t, a, gg = 1 - albedo * f, albedo * (1 - f) / (1 - albedo * f), (g - f) / (1 - f)
+        label = f"a {albedo}, g {g}" + (" (delta-Eddington)" if scaled else "")
+        for kh in (1, 2, 5, 10, 20):
+            depth = 4 * kh / 1.0  # kappa h in units of the unscaled extinction (sigma_t = 1)
+            fine = solve_slab(3000, depth, sigma_t, a, gg)
+            box = solve_slab(4, depth, sigma_t, a, gg) / fine
+            exp = solve_slab(4, depth, sigma_t, a, gg, "exp") / fine
+            print(f"{label:>34} {kh:>8} {box:7.3f} {exp:7.3f}")
+
+
+if __name__ == "__main__":
+    main()
