@@ -39,7 +39,10 @@ DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const Lig
     const FirstScatterMeans means = [&] {
         std::optional<ScopedTimer> timer;  // under "sources" when the model calls
         if (report) timer.emplace(*report, "first_scatter_bound");
-        return FirstScatterMeans(light, d, m.rho, s.sigma_t, m.grid.h);
+        std::vector<bool> lit(nl, false);  // in some right-hand side
+        for (const std::vector<double>& weight : group.rhs_weights)
+            for (size_t l = 0; l < nl; ++l) lit[l] = lit[l] || weight[l] != 0.0;
+        return FirstScatterMeans(light, d, m.rho, s.sigma_t, m.grid.h, lit);
     }();
     if (report) {
         std::vector<std::string> names;

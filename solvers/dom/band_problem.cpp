@@ -94,7 +94,9 @@ FirstScatterMeans add_light_sources(BandProblem& p, const Decomposition& d, cons
         const size_t nd = nl > 0 ? P.size() / static_cast<size_t>(nl) : 0;
         for (size_t q = 0; q < P.size(); ++q) P[q] /= norm[q / nd];
     }
-    const FirstScatterMeans means(lt, d, m.rho, scale * o.sigma_t, m.grid.h);
+    std::vector<bool> carried(lt.lights.size());
+    for (size_t l = 0; l < lt.lights.size(); ++l) carried[l] = E0[l] != 0.0;
+    const FirstScatterMeans means(lt, d, m.rho, scale * o.sigma_t, m.grid.h, carried);
     for (int l = 0; l < nl; ++l) {
         const int t = lit[static_cast<size_t>(l)];
         const auto& light = lt.lights[static_cast<size_t>(t)];

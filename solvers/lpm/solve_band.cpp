@@ -65,7 +65,9 @@ BandResult solve_sources(const Decomposition& d, const Medium& m, const LightTra
     // First-scatter source, split over the coarse bins by the exact beam factors.
     Field<double> U(own, 1, nm, 0.0);
     double source = 0.0;
-    const FirstScatterMeans means(light, d, m.rho, bo.sigma_t, m.grid.h);
+    std::vector<bool> lit(nl);
+    for (size_t l = 0; l < nl; ++l) lit[l] = strength[l] != 0.0;
+    const FirstScatterMeans means(light, d, m.rho, bo.sigma_t, m.grid.h, lit);
     if (report) means.report(bo.name, *report);
     for (size_t l = 0; l < light.lights.size(); ++l) {
         const DirectionalLight& dl = light.lights[l];

@@ -82,13 +82,15 @@ double LightTransport::transmittance_mean(const Decomposition& d, const Field<do
 }
 
 FirstScatterMeans::FirstScatterMeans(const LightTransport& lt, const Decomposition& d, const Field<double>& rho,
-                                     double sigma_t, double h)
+                                     double sigma_t, double h, const std::vector<bool>& lit)
     : lt_(lt), d_(d), rho_(rho), sigma_t_(sigma_t), h_(h) {
     const size_t nl = lt.lights.size();
     const Box& dom = d.global();
     const Box own = d.local();
     std::vector<double> sums(2 * nl, 0.0);  // per light: taken, then what leaves the domain
+    const auto used = [&](size_t l) { return lit.empty() || lit[l]; };
     for (size_t l = 0; l < nl; ++l) {
+        if (!used(l)) continue;
         const Vec3& w = lt.lights[l].w;
         const int light = static_cast<int>(l);
         double taken = 0.0, out = 0.0;
@@ -114,7 +116,7 @@ FirstScatterMeans::FirstScatterMeans(const LightTransport& lt, const Decompositi
         double in = 0.0;  // through every cell of the faces the light enters by
         for (int a = 0; a < 3; ++a)
             if (!d.periodic(a)) in += std::abs(w[a]) * h * h * static_cast<double>(dom.cells() / dom.size(a));
-        const double lost = std::max(0.0, in - sums[nl + l]);
+        const double lost = used(l) ? std::max(0.0, in - sums[nl + l]) : 0.0;
         taken_.push_back(sums[l]);
         lost_.push_back(lost);
         // Above round-off only: a slab that absorbs the whole beam takes exactly what it loses.

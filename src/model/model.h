@@ -61,8 +61,9 @@ struct LightTransport {
 // grazing sun over periodic x/y (w_z = -0.016) the cells took 1.9x the beam. Collective.
 class FirstScatterMeans {
 public:
+    // lit[l] false: light l is not used (no pass over the cells; scale 1); empty: all are.
     FirstScatterMeans(const LightTransport& lt, const Decomposition& d, const Field<double>& rho, double sigma_t,
-                      double h);
+                      double h, const std::vector<bool>& lit = {});
     // kappa <T> h³ of cell (i, j, k) is sigma_t rho h³ times this.
     double operator()(int light, int i, int j, int k) const {
         return scale_[static_cast<size_t>(light)] * lt_.transmittance_mean(d_, rho_, light, sigma_t_, h_, i, j, k);

@@ -160,6 +160,10 @@ TEST(SunTransmittance, FirstScatterMeansKeepToTheBeamUnderAGrazingSunOverPeriodi
     Report report;
     means.report("gray", report);
     EXPECT_NEAR(report.values()["first_scatter_bound"]["gray"]["sun"]["taken"].get<double>(), means.taken(0), 0.0);
+    // A light the caller does not carry is not summed and keeps its means.
+    const FirstScatterMeans unlit(lt, s.d, s.m.rho, sigma_t, h, {false});
+    EXPECT_EQ(unlit.taken(0), 0.0);
+    EXPECT_EQ(unlit.scale(0), 1.0);
 }
 
 // Light must leave the domain: with periodic z only horizontal light is accepted, by both
