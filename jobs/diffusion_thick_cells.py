@@ -17,8 +17,8 @@ Two ways to place each cell's first-scatter source are compared:
        whose share then leaves by h / (h + 4D) and enters the cell by 4D / (h + 4D)) by the
        Green's function of -D u'' + sigma_a u between the two nodes, taken at the source's
        centroid: the lit node gets sinh(k d) / sinh(k l), k = sqrt(sigma_a / D), d the
-       centroid's distance from the centre (l/2 · Langevin(kappa h / 2) for e^{-kappa z}),
-       l the node distance; k -> 0 gives the linear hat weights.
+       centroid's distance from the centre (h/2 · Langevin(kappa h / 2) for e^{-kappa z}),
+       l the node distance (h, or h/2 to a face); k -> 0 gives the linear hat weights.
 The delta-Eddington rows solve with the model's scaled optics (delta_scaling.h).
 Usage: /usr/bin/python3 jobs/diffusion_thick_cells.py
 """

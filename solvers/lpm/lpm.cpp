@@ -84,6 +84,7 @@ public:
                 const double offset = static_cast<double>(solves.size()) * opt_.iterations * 6;
                 lpm::BandResult r = lpm::solve_sources(d, m, ctx.light, group.optics, weight, opt_, ang, &progress,
                                                        offset, &ctx.report, sources);
+                r.first_scatter.report(fmt::format("{}", fmt::join(band_names, ", ")), ctx.report, d.rank() == 0);
                 const double total = std::accumulate(r.sweep_seconds.begin(), r.sweep_seconds.end(), 0.0);
                 const double mean = r.sweep_seconds.empty() ? 0.0 : total / static_cast<double>(r.sweep_seconds.size());
                 const std::vector<std::string> terms = term_names(weight, ctx.light.lights, sources.size());

@@ -68,7 +68,6 @@ BandResult solve_sources(const Decomposition& d, const Medium& m, const LightTra
     std::vector<bool> lit(nl);
     for (size_t l = 0; l < nl; ++l) lit[l] = strength[l] != 0.0;
     const FirstScatterMeans means(light, d, m.rho, bo.sigma_t, m.grid.h, lit);
-    if (report) means.report(bo.name, *report);
     for (size_t l = 0; l < light.lights.size(); ++l) {
         const DirectionalLight& dl = light.lights[l];
         const double E0 = strength[l];
@@ -103,6 +102,7 @@ BandResult solve_sources(const Decomposition& d, const Medium& m, const LightTra
     u_max0 = global_max(u_max0, d.comm());
 
     BandResult r;
+    r.first_scatter = means.bound();
     r.source = global_sum(source, d.comm());
     Field<double> fluence(own, 1, 1, 0.0);
     Field<double> flux;

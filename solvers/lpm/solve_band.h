@@ -63,6 +63,8 @@ struct BandResult {
     // Tail "dsa" only: when max |U| grew from one round to the next (DSA diverging), its history
     // up to there; this result is then the solve with tail "diffusion" (solve_sources).
     std::vector<double> dsa_diverged_max_U;
+    // The first-scatter source's bound (FirstScatterMeans), for the caller to report.
+    FirstScatterBound first_scatter;
 };
 
 // The map order of one iteration: faces -Z, +Z, +X, -X, +Y, -Y.

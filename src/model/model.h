@@ -51,14 +51,28 @@ struct LightTransport {
     double fluence_reduced(const Medium& m, int b, int i, int j, int k) const;
 };
 
+// What FirstScatterMeans found per light: the power (per unit E0, W per W/m²) that the cells'
+// unscaled means of T take, the most the beam loses in the domain, and the factor applied.
+struct FirstScatterBound {
+    struct Light {
+        std::string name;
+        double taken = 0.0, lost = 0.0, scale = 1.0;
+    };
+    std::vector<Light> lights;  // one per light of the LightTransport, in its order
+    // Every cut light is recorded in report.values()["first_scatter_bound"][band][light name] as
+    // {taken, lost}; if speak, a warning for each cut by more than 1%, naming `band`.
+    void report(const std::string& band, Report& report, bool speak) const;
+};
+
 // The cell means of T that a model's first-scatter source integrates, at one sigma_t: each
 // cell's transmittance_mean, scaled per light where all cells together would take more than the
 // beam loses in the domain. Per unit E0 the beam brings h² |w_a| through every cell of each
-// non-periodic face it enters by, and takes out h² |w_a| T through the faces it leaves by (T of
-// an empty cell there; nothing from a cell with density, so the loss is never under-counted and
-// a correct source is never cut); the cells take Σ kappa <T> h³. The linear profile of
-// transmittance_mean over-counts where tau bends inside cells on a scale it cannot see: under a
-// grazing sun over periodic x/y (w_z = -0.016) the cells took 1.9x the beam. Collective.
+// non-periodic face it enters by and takes out h² |w_a| T through the faces it leaves by; the
+// loss is estimated from above (T of the darkest of each leaving cell and its neighbours in the
+// face, 0 at density), so that a correct source is not cut. The cells take Σ kappa <T> h³. The
+// linear profile of transmittance_mean over-counts where tau bends inside cells on a scale it
+// cannot see: under a grazing sun over periodic x/y (w_z = -0.016) the cells took 1.9x the
+// beam. Holds references to lt, d and rho, which must outlive it. Collective construction.
 class FirstScatterMeans {
 public:
     // lit[l] false: light l is not used (no pass over the cells; scale 1); empty: all are.
@@ -66,22 +80,21 @@ public:
                       double h, const std::vector<bool>& lit = {});
     // kappa <T> h³ of cell (i, j, k) is sigma_t rho h³ times this.
     double operator()(int light, int i, int j, int k) const {
-        return scale_[static_cast<size_t>(light)] * lt_.transmittance_mean(d_, rho_, light, sigma_t_, h_, i, j, k);
+        return scale(light) * lt_.transmittance_mean(d_, rho_, light, sigma_t_, h_, i, j, k);
     }
-    double scale(int light) const { return scale_[static_cast<size_t>(light)]; }
-    // Per unit E0 (W): what the unscaled cell means take, and what the beam loses at most.
-    double taken(int light) const { return taken_[static_cast<size_t>(light)]; }
-    double lost(int light) const { return lost_[static_cast<size_t>(light)]; }
-    // Rank 0 warns for each light cut by more than 1%, naming `band`; every cut light is recorded
-    // in report.values()["first_scatter_bound"][band][light name] as {taken, lost}.
-    void report(const std::string& band, Report& report) const;
+    double scale(int light) const { return bound_.lights[static_cast<size_t>(light)].scale; }
+    double taken(int light) const { return bound_.lights[static_cast<size_t>(light)].taken; }
+    double lost(int light) const { return bound_.lights[static_cast<size_t>(light)].lost; }
+    const FirstScatterBound& bound() const { return bound_; }
+    // bound().report with rank 0 speaking.
+    void report(const std::string& band, Report& report) const { bound_.report(band, report, d_.rank() == 0); }
 
 private:
     const LightTransport& lt_;
     const Decomposition& d_;
     const Field<double>& rho_;
     double sigma_t_, h_;
-    std::vector<double> scale_, taken_, lost_;
+    FirstScatterBound bound_;
 };
 
 struct DiffuseSolution {

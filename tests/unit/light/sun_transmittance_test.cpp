@@ -62,16 +62,17 @@ TEST(SunTransmittance, CellMeanIsExactInAThickSlab) {
     LitMedium s = make(MPI_COMM_WORLD, n, h, [&](int, int, int k) { return k >= 3 && k < 9 ? 1.0 : 0.0; },
                        {true, true, false});
     for (double sigma_t : {4.0, 200.0}) {  // kappa h = 2, 100
-        for (double theta_deg : {0.0, 40.0}) {
-            const double th = theta_deg * std::numbers::pi / 180, mu = std::cos(th);
-            const Vec3 w{std::sin(th) * 0.6, std::sin(th) * 0.8, -mu};
+        for (double theta_deg : {0.0, 40.0, 140.0}) {  // 140°: light from below
+            const double th = theta_deg * std::numbers::pi / 180, mu = std::abs(std::cos(th));
+            const Vec3 w{std::sin(th) * 0.6, std::sin(th) * 0.8, -std::cos(th)};
             Report r;
             const auto lt = compute_light_transport(s.d, s.m, {{"sun", w, {1.0}}}, r, {}, LightSpec::Method::exact);
             double worst = 0.0;
             for_each_cell(s.d.local(), [&](int i, int j, int k) {
                 if (k < 3 || k >= 9) return;
-                const double x = sigma_t * h / mu;                    // optical thickness of the cell along w
-                const double tau_top = sigma_t * (9 - (k + 1)) * h / mu;  // at the cell's top face
+                const double x = sigma_t * h / mu;  // optical thickness of the cell along w
+                // at the cell's lit face: the top one, or the bottom one under light from below
+                const double tau_top = sigma_t * (w.z < 0.0 ? 9 - (k + 1) : k - 3) * h / mu;
                 const double want = std::exp(-tau_top) * -std::expm1(-x) / x;
                 const double got = lt.transmittance_mean(s.d, s.m.rho, 0, sigma_t, h, i, j, k);
                 if (want > 1e-300) worst = std::max(worst, std::abs(got / want - 1.0));
@@ -159,11 +160,54 @@ TEST(SunTransmittance, FirstScatterMeansKeepToTheBeamUnderAGrazingSunOverPeriodi
     EXPECT_NEAR(bounded, brought, 1e-9 * brought);
     Report report;
     means.report("gray", report);
-    EXPECT_NEAR(report.values()["first_scatter_bound"]["gray"]["sun"]["taken"].get<double>(), means.taken(0), 0.0);
+    EXPECT_EQ(report.values()["first_scatter_bound"]["gray"]["sun"]["taken"].get<double>(), means.taken(0));
     // A light the caller does not carry is not summed and keeps its means.
     const FirstScatterMeans unlit(lt, s.d, s.m.rho, sigma_t, h, {false});
     EXPECT_EQ(unlit.taken(0), 0.0);
     EXPECT_EQ(unlit.scale(0), 1.0);
+}
+
+// The beam's loss through x faces, on ranks split along x (the exit layer on the last rank
+// only): a slab across x (cells 3..8 of 12, kappa h = 1.5) periodic in y and z under horizontal
+// light loses n_y n_z h² |w_x| (1 - e^{-6 kappa h / |w_x|}), which the exact means take; a thin
+// one (kappa h = 1e-13) loses what it takes too, where the entering minus the leaving power
+// would be round-off.
+TEST(SunTransmittance, FirstScatterLossThroughXFacesOnRanksSplitAlongX) {
+    int size = 1;
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    const Int3 n{12, 4, 6};
+    const double h = 0.5;
+    LitMedium s = make(MPI_COMM_WORLD, n, h, [](int i, int, int) { return i >= 3 && i < 9 ? 1.0 : 0.0; },
+                       {false, true, true}, {size, 1, 1});
+    for (const Vec3 w : {normalized(Vec3{0.8, 0.6, 0.0}), normalized(Vec3{-0.5, 0.3, 0.0})}) {
+        Report r;
+        const auto lt = compute_light_transport(s.d, s.m, {{"sun", w, {1.0}}}, r, {}, LightSpec::Method::exact);
+        for (double sigma_t : {3.0, 2e-13}) {
+            const FirstScatterMeans means(lt, s.d, s.m.rho, sigma_t, h);
+            const double lost = n[1] * n[2] * h * h * std::abs(w.x) * -std::expm1(-sigma_t * 6 * h / std::abs(w.x));
+            EXPECT_NEAR(means.lost(0), lost, 1e-12 * lost) << sigma_t << " " << w.x;
+            EXPECT_NEAR(means.taken(0), lost, 1e-9 * lost) << sigma_t << " " << w.x;
+            EXPECT_EQ(means.scale(0), 1.0);
+        }
+    }
+}
+
+// A correct source is not cut: one opaque cell (kappa h = 32) in an open 20³ domain takes
+// h² Σ|w_a| (the means' own cap, the exact loss of an opaque cube) under oblique light whose
+// shadow on the bottom face covers 1.75 cells but one bottom-layer centre; T at the centres alone
+// counted the rest of the shadow as lit and cut the source to 0.57.
+TEST(SunTransmittance, FirstScatterBoundLeavesAnOpaqueCellsShadowAlone) {
+    const Int3 n{20, 20, 20};
+    const double h = 1.0, sigma_t = 32.0;
+    for (const auto& [cell, w] : {std::pair{Int3{8, 8, 5}, normalized(Vec3{0.5, 0.1, -0.8})},
+                                  std::pair{Int3{8, 8, 6}, normalized(Vec3{0.3, 0.2, -0.93})}}) {
+        LitMedium s = make(MPI_COMM_WORLD, n, h, [&](int i, int j, int k) { return Int3{i, j, k} == cell ? 1.0 : 0.0; });
+        Report r;
+        const auto lt = compute_light_transport(s.d, s.m, {{"sun", w, {1.0}}}, r, {}, LightSpec::Method::exact);
+        const FirstScatterMeans means(lt, s.d, s.m.rho, sigma_t, h);
+        EXPECT_NEAR(means.taken(0), h * h * (std::abs(w.x) + std::abs(w.y) + std::abs(w.z)), 1e-9);
+        EXPECT_EQ(means.scale(0), 1.0) << means.taken(0) << " " << means.lost(0);
+    }
 }
 
 // Light must leave the domain: with periodic z only horizontal light is accepted, by both
