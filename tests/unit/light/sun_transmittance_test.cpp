@@ -138,8 +138,9 @@ TEST(SunTransmittance, CellMeanNeverTakesMoreThanTheBeamBrings) {
 // wraps: tau rises at rho / |w_z| for the first few hundredths of a metre below the top face,
 // then far slower, a bend within the cell that the means' linear profile cannot see. Here (a 6³
 // box, kappa h = 0.5, w_z = -0.016) they took 1.9x the beam, and dom's diffuse fluence was 2.25x
-// the Monte Carlo reference in the box (1.18x with the bound). The box shades the whole bottom,
-// so the beam loses all it brings; the bounded means take exactly that.
+// the Monte Carlo reference in the box (1.18x with the bound). The wraps through the box put out
+// the beam before the bottom (T there ~ e^{-45}), so it loses all it brings; the bounded means
+// take that.
 TEST(SunTransmittance, FirstScatterMeansKeepToTheBeamUnderAGrazingSunOverPeriodicXY) {
     const Int3 n{12, 12, 12};
     const double h = 1.0, sigma_t = 0.5;
