@@ -68,8 +68,11 @@ void make_source_moments(const BandProblem& p, const std::vector<double>& chi, c
 FirstScatterMeans add_light_sources(BandProblem& p, const Decomposition& d, const Medium& m, const LightTransport& lt,
                                     const BandOptics& o, const std::vector<double>& E0, const AngularSet& ang) {
     std::vector<int> lit;  // the lights of lt this problem carries
-    for (size_t l = 0; l < lt.lights.size(); ++l)
-        if (E0[l] != 0.0) lit.push_back(static_cast<int>(l));
+    std::vector<bool> carried(lt.lights.size());
+    for (size_t l = 0; l < lt.lights.size(); ++l) {
+        carried[l] = E0[l] != 0.0;
+        if (carried[l]) lit.push_back(static_cast<int>(l));
+    }
     const int nl = static_cast<int>(lit.size());
     const Box own = p.kappa.owned();
     const double f = p.phase.f, scale = delta_m_sigma_t_scale(o.albedo, f);
@@ -94,8 +97,6 @@ FirstScatterMeans add_light_sources(BandProblem& p, const Decomposition& d, cons
         const size_t nd = nl > 0 ? P.size() / static_cast<size_t>(nl) : 0;
         for (size_t q = 0; q < P.size(); ++q) P[q] /= norm[q / nd];
     }
-    std::vector<bool> carried(lt.lights.size());
-    for (size_t l = 0; l < lt.lights.size(); ++l) carried[l] = E0[l] != 0.0;
     const FirstScatterMeans means(lt, d, m.rho, scale * o.sigma_t, m.grid.h, carried);
     for (int l = 0; l < nl; ++l) {
         const int t = lit[static_cast<size_t>(l)];
