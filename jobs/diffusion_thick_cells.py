@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Why the diffusion model is too bright on optically thick cells, in one dimension
-(solvers/diffusion/README.md, "Optically thick cells").
+"""The diffusion model on optically thick cells, in one dimension (solvers/diffusion/README.md,
+"Optically thick cells").
 
 A slab of 4 cells under an overhead sun (E0 = 1, vacuum on both sides) is solved with the
 model's own scheme (diffusion_kernel.h: cell-centred P1, face D and G from the two cells,
@@ -8,17 +8,19 @@ Marshak faces by ghost elimination, the first-scatter source Q0 = kappa a T / 4�
 each cell) and compared with the same P1 equation on 3000 cells. The only difference is the
 discretization, so the ratio of the totals of U is the scheme's error on thick cells.
 
-Two ways to place each cell's first-scatter source are compared:
-  box  the model's: the cell integral of Q0 at the cell centre. The light scattered within a
-       mean free path of the lit face sits half a cell under it, behind the half cell's
-       diffusion resistance h / (2D), and cannot get out.
-  exp  a candidate, not in the model: the cell's source is split between its centre and the
-       node on the lit side (the next cell's centre at h, or at a Marshak face the face at h/2,
-       whose share then leaves by h / (h + 4D) and enters the cell by 4D / (h + 4D)) by the
-       Green's function of -D u'' + sigma_a u between the two nodes, taken at the source's
-       centroid: the lit node gets sinh(k d) / sinh(k l), k = sqrt(sigma_a / D), d the
-       centroid's distance from the centre (h/2 · Langevin(kappa h / 2) for e^{-kappa z}),
-       l the node distance (h, or h/2 to a face); k -> 0 gives the linear hat weights.
+Three ways to place each cell's first-scatter source are compared:
+  centre  the model's until the thirty-ninth session: the cell integral of Q0 at the cell
+          centre. The light scattered within a mean free path of the lit face sits half a cell
+          under it, behind the half cell's diffusion resistance h / (2D), and cannot get out.
+  sheet   the model's now (sources.cpp, sheet_escape; diffusion_kernel.h, marshak_escape): in
+          the cell under the Marshak face the light enters by, the source is split between the
+          centre and the face (at h/2, whose share leaves by h / (h + 4D) and enters the cell
+          by 4D / (h + 4D)) by the Green's function of -D u'' + sigma_a u between the two, taken
+          at the source's centroid: the face gets sinh(k d) / sinh(k l), k = sqrt(sigma_a / D),
+          d the centroid's distance from the centre ((h/2) L(kappa h / 2) for e^{-kappa z},
+          L(y) = coth y - 1/y), l = h/2; k -> 0 gives the linear hat weights.
+  spread  the same split in every cell, toward the next cell's centre (l = h) where the lit
+          side is interior: no better here, and in 3-D it would move sources between ranks.
 The delta-Eddington rows solve with the model's scaled optics (delta_scaling.h).
 Usage: /usr/bin/python3 jobs/diffusion_thick_cells.py
 """
@@ -43,7 +45,7 @@ def tridiagonal_solve(lower, diag, upper, rhs):
     return x
 
 
-def solve_slab(ncell, depth, sigma_t, albedo, g, placement="box"):
+def solve_slab(ncell, depth, sigma_t, albedo, g, placement="centre"):
     """Total of U (W/m² per 4π, times m) over a slab `depth` metres thick of ncell cells."""
     h = depth / ncell
     kappa_tr = sigma_t * (1 - albedo * g)
@@ -56,7 +58,7 @@ def solve_slab(ncell, depth, sigma_t, albedo, g, placement="box"):
     source = q0 * h  # per unit area
     G = g * q0 / kappa_tr  # Q1 / kappa_tr, Q1 = g q0 w, w = +z (down)
     placed = source.copy()
-    if placement == "exp":
+    if placement in ("sheet", "spread"):
         k = np.sqrt(sigma_a / D)
         d = 0.5 * h * (1 / np.tanh(x / 2) - 2 / x)  # centroid of e^{-sigma z} above the centre
 
@@ -64,13 +66,13 @@ def solve_slab(ncell, depth, sigma_t, albedo, g, placement="box"):
             return d / length if k * length < 1e-8 else np.sinh(k * d) / np.sinh(k * length)
 
         for c in range(ncell):
-            if c > 0:
+            if c == 0:  # under the Marshak face the light enters by
+                face = source[c] * share(h / 2)
+                placed[c] += -face + 4 * D * face / (h + 4 * D)
+            elif placement == "spread":  # toward the lit neighbour's centre
                 moved = source[c] * share(h)
                 placed[c] -= moved
                 placed[c - 1] += moved
-            else:
-                face = source[c] * share(h / 2)
-                placed[c] += -face + 4 * D * face / (h + 4 * D)
     # Cell balance per unit area: Σ_faces D (U_P - U_N)/h + sigma_a h U_P = S - Σ_faces G_f n_out
     lower = np.zeros(ncell)
     upper = np.zeros(ncell)
@@ -93,7 +95,7 @@ def solve_slab(ncell, depth, sigma_t, albedo, g, placement="box"):
 
 def main():
     print("total U of 4 cells / total U of 3000 cells, slab of 4 kappa h, overhead sun")
-    print(f"{'optics':>34} {'kappa h':>8} {'box':>7} {'exp':>7}")
+    print(f"{'optics':>34} {'kappa h':>8} {'centre':>7} {'sheet':>7} {'spread':>7}")
     cases = [(0.999, 0.0, False), (0.9, 0.0, False), (0.5, 0.0, False),
              (0.999, 0.85, True), (0.9, 0.85, True), (0.99, 0.5, True)]
     for albedo, g, scaled in cases:
@@ -105,9 +107,8 @@ def main():
         for kh in (1, 2, 5, 10, 20):
             depth = 4 * kh / 1.0  # kappa h in units of the unscaled extinction (sigma_t = 1)
             fine = solve_slab(3000, depth, sigma_t, a, gg)
-            box = solve_slab(4, depth, sigma_t, a, gg) / fine
-            exp = solve_slab(4, depth, sigma_t, a, gg, "exp") / fine
-            print(f"{label:>34} {kh:>8} {box:7.3f} {exp:7.3f}")
+            ratios = [solve_slab(4, depth, sigma_t, a, gg, p) / fine for p in ("centre", "sheet", "spread")]
+            print(f"{label:>34} {kh:>8} " + " ".join(f"{r:7.3f}" for r in ratios))
 
 
 if __name__ == "__main__":

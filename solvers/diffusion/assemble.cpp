@@ -93,6 +93,7 @@ Vec3 Assembler::flux(int r, const Field<double>& U, int i, int j, int k) const {
             const double Un = in.neighbor_full ? U(nb[0], nb[1], nb[2]) : 0.0;
             sum += skip ? Gp : face_flux(kt, Gp, U(i, j, k), s, in, Un, h);
         }
+        if (!p_.escape_flux.empty()) sum += p_.escape_flux[static_cast<size_t>(r)](i, j, k, axis);
         F[axis] = 4.0 * std::numbers::pi * 0.5 * sum;
     }
     return F;

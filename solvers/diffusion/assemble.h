@@ -33,8 +33,9 @@ public:
     bool has_marshak_face(int i, int j, int k) const;
     // Right-hand side r (index into p.Q0/p.G) at cell (i, j, k); 0 in empty cells.
     double rhs(int r, int i, int j, int k) const;
-    // F = 4π (G - D∇U) at the cell centre: mean of the two face fluxes per axis. U must have
-    // its ghost layer exchanged. Zero in empty cells.
+    // F = 4π (G - D∇U) at the cell centre: mean of the two face fluxes per axis, with the
+    // source that leaves a face directly (p.escape_flux). U must have its ghost layer
+    // exchanged. Zero in empty cells.
     Vec3 flux(int r, const Field<double>& U, int i, int j, int k) const;
 
 private:

@@ -31,7 +31,7 @@ public:
     // hypre's 7-point matrix, vectors and multigrid hierarchy, the right-hand sides and the per
     // band fluence and flux: 8 (26 + 4 bands) bytes per local cell, calibrated on the default
     // cloud (measured 306 bytes per cell at 3 bands; the solve covers only the cloud's box, so
-    // this is an upper bound elsewhere). The flux limiter adds 21 values per cell: its copy of
+    // this is an upper bound elsewhere), and the sources' centroids (3 per band). The flux limiter adds 21 values per cell: its copy of
     // the problem for one right-hand side (6), the previous U (1), lambda and its target (2),
     // the Anderson history (12: 5 pairs of differences, the last iterate and residual). SMG's
     // plane solvers and PETSc's copy of the system with BoomerAMG's hierarchy take more: measured
@@ -41,27 +41,30 @@ public:
     double memory_bytes(const Scene& s, const Decomposition& d, int) const override {
         const double limiter = opt_.flux_limiter == "none" ? 0.0 : 21.0;
         const double solver = opt_.solver.rfind("smg", 0) == 0 ? 23.0 : opt_.solver == "petsc" ? 33.0 : 0.0;
-        return 8.0 * (26.0 + 4.0 * s.nbands() + limiter + solver) * static_cast<double>(d.local().cells());
+        return 8.0 * (26.0 + 7.0 * s.nbands() + limiter + solver) * static_cast<double>(d.local().cells());
     }
     // solver = petsc: the decomposition and model.diffusion.petsc_options (linear_solve.h).
     // Warns of settings that run but rarely mean what they say.
     void check_layout(const Decomposition& d) const override {
         if (opt_.solver == "petsc") diffusion::check_petsc_layout(d);
     }
-    // Cells of more than kThickCell optical depths: the light scattered within a mean free path
-    // of a surface sits at the cell's centre, half a cell under the surface it escapes through,
-    // so the fluence comes out too high. A QA box of 4³ cells (albedo 0.999, g 0, overhead sun;
-    // `nimbus compare` against Monte Carlo, 2e5 photons), total fluence_diffuse: 1.02x at
-    // kappa h = 1, 1.26x at 2, 2.1x at 5, 3.5x at 10, 5.9x at 20 (dom S4: 0.80-0.99x). Said by
-    // rank 0. Collective.
-    static constexpr double kThickCell = 2.0;
+    // Cells of more than kThickCell optical depths. Their first scatter lies in sheets under the
+    // lit faces, which make_problem splits between the cell's centre and the face (sources.cpp,
+    // sheet_escape); the field's shape inside them is not resolved, and the cells' means of T
+    // under-count light entering by a side face under an oblique sun (FirstScatterMeans; every
+    // finite-volume model alike). A box of 4³ cells (albedo 0.999, g 0; Monte Carlo, 2e5 photons;
+    // solvers/diffusion/README.md, "Optically thick cells"), total fluence_diffuse at kappa h = 5,
+    // 10, 20: 1.08, 1.03, 0.97 under an overhead sun (before the split 2.1, 3.5, 5.9), 0.87, 0.79,
+    // 0.75 under a sun 32° from the zenith (dom S4 0.80 and 0.99 overhead, 0.75 and 0.90 oblique,
+    // at 5 and 20). Said by rank 0. Collective.
+    static constexpr double kThickCell = 4.0;
     static void warn_if_cells_thick(const Decomposition& d, const Medium& m) {
         const double tau = max_cell_optical_depth(d, m);
         if (tau > kThickCell && d.rank() == 0)
-            log::warn("model diffusion: cells up to {:.3g} optical depths thick: the light scattered near a surface "
-                      "is placed at the cell's centre, half a cell under the surface it escapes through, so "
-                      "fluence_diffuse comes out too high (total against Monte Carlo on a box: 1.26x at 2, 2.1x at "
-                      "5, 3.5x at 10, 5.9x at 20 per cell); refine the grid to about 1 per cell, or use dom",
+            log::warn("model diffusion: cells up to {:.3g} optical depths thick: the field inside them is not "
+                      "resolved (total fluence_diffuse on a box of such cells against Monte Carlo: 0.97-1.08x "
+                      "under an overhead sun, 0.75-0.87x under an oblique one, at 5-20 per cell); refine the grid "
+                      "to about 1 per cell",
                       tau);
     }
     void check(const Scene&, const Decomposition& d, const Medium& m) const override {

@@ -16,6 +16,10 @@
 //   diagonal += 2 D h / (4D + h),   rhs += (n·G) h² / (4D + h)
 // and the face carries the outgoing flux F·n_out = 2π U_f, U_f = (4D U_P - 2h n·G)/(4D + h).
 // Empty cells (kappa_tr = 0) get an identity row with zero rhs and no couplings.
+// The source Q0 h² of a cell sits at its centre. The sources builder (sources.h) takes out of
+// Q0 the share of a light's first scatter that lies in the sheet under a Marshak face the light
+// enters by and leaves through that face directly (marshak_escape); the face's flux carries it
+// (DiffusionProblem::escape_flux).
 // D uses max(kappa_tr, kappa_floor): the transport mean free path is capped at half the smallest
 // extent of the full cells' bounding box (DiffusionOptions::max_transport_length overrides). Without the cap,
 // the near-empty cells at a cloud's smooth edge (rho -> 0, D -> ∞) form near-singular floating
@@ -25,6 +29,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 
 namespace nimbus::diffusion {
 
@@ -68,6 +73,38 @@ inline FaceTerms face_terms(double kappa_tr_p, double G_p, int s, const FaceInpu
         t.rhs = n_dot_G * h * h / (4.0 * D + h);
     }
     return t;
+}
+
+// The Langevin function coth y - 1/y, y >= 0: e^{-2 y x / h} on [-h/2, h/2] has its centroid
+// at -(h/2) L(y).
+inline double langevin(double y) {
+    if (y < 1e-2) return y * (1.0 / 3.0 - y * y / 45.0);  // the difference cancels below
+    return 1.0 / std::tanh(y) - 1.0 / y;
+}
+
+// The share of a source in a full cell that leaves through one of its Marshak faces directly,
+// the source's centroid lying `offset` metres (0 <= offset <= h/2) from the centre toward the
+// face. Between the centre and the face (l = h/2) the source is split by the Green's function of
+// -D u'' + sigma_a u with both ends held: the face takes sinh(k offset) / sinh(k l),
+// k = sqrt(sigma_a / D) (offset / l as k -> 0, the linear hat weights); of what the face takes,
+// h / (h + 4D) leaves (the Marshak face of the ghost elimination) and the rest enters the cell.
+// A source at the centre (offset 0, a thin cell) stays; one at the face (a thick cell) mostly
+// leaves.
+inline double marshak_escape(double offset, double D, double sigma_a, double h) {
+    const double l = 0.5 * h;
+    if (!(offset > 0.0)) return 0.0;
+    if (offset > l) offset = l;
+    const double kl = std::sqrt(sigma_a / D) * l;
+    double share;
+    if (kl < 1e-6) {
+        share = offset / l;
+    } else {
+        // sinh(k offset) / sinh(k l) = e^{k (offset - l)} (1 - e^{-2 k offset}) / (1 - e^{-2 k l}),
+        // finite for any k l.
+        const double ko = kl * (offset / l);
+        share = std::exp(ko - kl) * (-std::expm1(-2.0 * ko)) / (-std::expm1(-2.0 * kl));
+    }
+    return share * h / (h + 4.0 * D);
 }
 
 // Fluence-per-4π flux through a face of full cell P, positive along +axis, from the solved U:

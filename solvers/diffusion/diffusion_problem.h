@@ -26,6 +26,12 @@ struct DiffusionProblem {
     Field<double> sigma_a;             // rho * sigma_a, 1/m, owned (ghosts unused)
     std::vector<Field<double>> Q0;     // per rhs: (1/4π)∫Q dw, owned
     std::vector<Field<double>> G;      // per rhs: Q1/kappa_tr, 3 components, owned + 1 ghost
+    // Per rhs, or none: the part of the cells' sources that leaves through their Marshak faces
+    // directly instead of entering Q0 (the first scatter in the sheet under a lit face of an
+    // optically thick cell: diffusion_kernel.h, marshak_escape), as a flux per 4π per unit
+    // face area, signed along each axis: Σ_faces s e_f h (3 components, owned). The face
+    // fluxes carry it (Assembler::flux); Q0 holds only what stays.
+    std::vector<Field<double>> escape_flux;
 };
 
 // The solve region: bounding box of the full cells grown by `margin`, clipped to the domain;

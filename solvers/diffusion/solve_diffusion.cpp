@@ -121,7 +121,7 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
                        const DiffusionOptions& opt, Report& report, DiffusionResult& out, Progress& progress,
                        double done_seconds) {
     const double start = wall_time();
-    DiffusionProblem q;  // p with right-hand side r only (every member but Q0 and G copied)
+    DiffusionProblem q;  // p with right-hand side r only (every member but Q0, G and escape_flux copied)
     q.h = p.h;
     q.n = p.n;
     q.periodic = p.periodic;
@@ -130,6 +130,7 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
     q.sigma_a = p.sigma_a;
     q.Q0 = {p.Q0[r]};
     q.G = {p.G[r]};
+    if (!p.escape_flux.empty()) q.escape_flux = {p.escape_flux[r]};
     DiffusionResult res = solve_linear(d, q, opt, report, r, 0);  // P1 with the cap: the first iterate
     const double floor = 1.0 / transport_cap(res.region, p, opt);
     std::vector<double> history;

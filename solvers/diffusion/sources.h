@@ -9,7 +9,9 @@
 // for each right-hand side (weights over the terms: the lights, then `sources`; band_groups.h). G is the first-scatter flux per 4π; it depends on the
 // density only through T' (rho cancels), so it is continuous across density jumps.
 // The lights' cell means of T' are FirstScatterMeans (src/model/model.h), whose bound it
-// reports into report, if given. Collective over d.comm() (halo exchange of G).
+// reports into report, if given. The first scatter in the sheet under a Marshak face a light
+// enters by leaves through that face in part directly (sheet_escape in sources.cpp): that part
+// is taken out of Q0 and put in escape_flux. Collective over d.comm() (halo exchange of G).
 #pragma once
 
 #include "src/physics/band_groups.h"

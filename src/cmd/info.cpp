@@ -192,14 +192,14 @@ void info(const RunOptions& opts, int plan_ranks) {
                              "transport across empty cells); optical depth: {}",
                              s.sources.size(), tau < 0.3 ? "thin" : tau < 3 ? "intermediate" : "thick");
     // Thick CELLS are a matter of resolution, whatever the scene's depth (the diffusion model warns
-    // from the same 2 optical depths per cell: solvers/diffusion/README.md).
+    // from the same 4 optical depths per cell: solvers/diffusion/README.md, "Optically thick cells").
     double sigma_max = 0.0;
     for (const auto& b : s.bands) sigma_max = std::max(sigma_max, b.sigma_t);
     const double cell_tau = sigma_max * rho_max * s.grid.h();
-    if (filled > 0 && cell_tau > 2.0)
-        advice += fmt::format("; cells up to {:.3g} optical depths thick: 'diffusion' and lpm's P1 tail come out "
-                              "too bright there (2x Monte Carlo at 5 per cell), 'dom' holds; refine the grid to "
-                              "about 1 per cell",
+    if (filled > 0 && cell_tau > 4.0)
+        advice += fmt::format("; cells up to {:.3g} optical depths thick: lpm's P1 tail comes out too bright there "
+                              "(1.7x Monte Carlo at 5 per cell, 5.4x at 20), 'diffusion' and 'dom' keep the total "
+                              "within about 25% but do not resolve the field; refine the grid to about 1 per cell",
                               cell_tau);
     say(comm, "models in this build: {}; this scene is {}", fmt::format("{}", fmt::join(available_models(), ", ")), advice);
     say(comm, "model asked for: '{}'", s.model.name);

@@ -52,6 +52,11 @@ inline double global_max(double v, MPI_Comm comm) {
     MPI_Allreduce(&v, &g, 1, MPI_DOUBLE, MPI_MAX, comm);
     return g;
 }
+inline double global_sum(double v, MPI_Comm comm) {
+    double g = 0;
+    MPI_Allreduce(&v, &g, 1, MPI_DOUBLE, MPI_SUM, comm);
+    return g;
+}
 inline double global_min(double v, MPI_Comm comm) {
     double g = 0;
     MPI_Allreduce(&v, &g, 1, MPI_DOUBLE, MPI_MIN, comm);
