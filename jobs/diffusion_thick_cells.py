@@ -13,14 +13,15 @@ Three ways to place each cell's first-scatter source are compared:
           centre. The light scattered within a mean free path of the lit face sits half a cell
           under it, behind the half cell's diffusion resistance h / (2D), and cannot get out.
   sheet   the model's now (sources.cpp, sheet_escape; diffusion_kernel.h, marshak_escape): in
-          the cell under the Marshak face the light enters by, the source is split between the
-          centre and the face (at h/2, whose share leaves by h / (h + 4D) and enters the cell
-          by 4D / (h + 4D)) by the Green's function of -D u'' + sigma_a u between the two, taken
-          at the source's centroid: the face gets sinh(k d) / sinh(k l), k = sqrt(sigma_a / D),
-          d the centroid's distance from the centre ((h/2) L(kappa h / 2) for e^{-kappa z},
-          L(y) = coth y - 1/y), l = h/2; k -> 0 gives the linear hat weights.
-  spread  the same split in every cell, toward the next cell's centre (l = h) where the lit
-          side is interior: no better here, and in 3-D it would move sources between ranks.
+          the cell under the Marshak face the light enters by, the share of the source that
+          leaves through the face is the Green's function of -D u'' + sigma_a u on the half cell
+          between the centre (held) and the face (Marshak, u + 2D u' = 0, outflow u/2), taken at
+          the source's centroid d ((h/2) L(kappa h / 2) from the centre for e^{-kappa z},
+          L(y) = coth y - 1/y): sinh(k d) / (sinh(k l) + 2 D k cosh(k l)), k = sqrt(sigma_a / D),
+          l = h/2; d / (l + 2D) as k -> 0.
+  spread  the same at the face, and in every other cell the source split toward the lit
+          neighbour's centre by sinh(k d) / sinh(k h) (the linear hat weights as k -> 0): no
+          better here, and in 3-D it would move sources between ranks.
 The delta-Eddington rows solve with the model's scaled optics (delta_scaling.h).
 Usage: /usr/bin/python3 jobs/diffusion_thick_cells.py
 """
@@ -66,9 +67,13 @@ def solve_slab(ncell, depth, sigma_t, albedo, g, placement="centre"):
             return d / length if k * length < 1e-8 else np.sinh(k * d) / np.sinh(k * length)
 
         for c in range(ncell):
-            if c == 0:  # under the Marshak face the light enters by
-                face = source[c] * share(h / 2)
-                placed[c] += -face + 4 * D * face / (h + 4 * D)
+            if c == 0:  # under the Marshak face the light enters by: what leaves through it
+                l = h / 2
+                if k * l < 1e-8:
+                    out = d / (l + 2 * D)
+                else:
+                    out = np.sinh(k * d) / (np.sinh(k * l) + 2 * D * k * np.cosh(k * l))
+                placed[c] -= source[c] * out
             elif placement == "spread":  # toward the lit neighbour's centre
                 moved = source[c] * share(h)
                 placed[c] -= moved

@@ -31,7 +31,8 @@ public:
     // hypre's 7-point matrix, vectors and multigrid hierarchy, the right-hand sides and the per
     // band fluence and flux: 8 (26 + 4 bands) bytes per local cell, calibrated on the default
     // cloud (measured 306 bytes per cell at 3 bands; the solve covers only the cloud's box, so
-    // this is an upper bound elsewhere), and the sources' centroids (3 per band). The flux limiter adds 21 values per cell: its copy of
+    // this is an upper bound elsewhere), and the escape flux of the sheets under lit faces (3 per
+    // right-hand side, counted per band). The flux limiter adds 21 values per cell: its copy of
     // the problem for one right-hand side (6), the previous U (1), lambda and its target (2),
     // the Anderson history (12: 5 pairs of differences, the last iterate and residual). SMG's
     // plane solvers and PETSc's copy of the system with BoomerAMG's hierarchy take more: measured
@@ -50,21 +51,19 @@ public:
     }
     // Cells of more than kThickCell optical depths. Their first scatter lies in sheets under the
     // lit faces, which make_problem splits between the cell's centre and the face (sources.cpp,
-    // sheet_escape); the field's shape inside them is not resolved, and the cells' means of T
-    // under-count light entering by a side face under an oblique sun (FirstScatterMeans; every
-    // finite-volume model alike). A box of 4³ cells (albedo 0.999, g 0; Monte Carlo, 2e5 photons;
-    // solvers/diffusion/README.md, "Optically thick cells"), total fluence_diffuse at kappa h = 5,
-    // 10, 20: 1.08, 1.03, 0.97 under an overhead sun (before the split 2.1, 3.5, 5.9), 0.87, 0.79,
-    // 0.75 under a sun 32° from the zenith (dom S4 0.80 and 0.99 overhead, 0.75 and 0.90 oblique,
-    // at 5 and 20). Said by rank 0. Collective.
+    // sheet_escape), but the field inside them is not resolved. A box of 4³ cells (albedo 0.999,
+    // g 0 unless said; Monte Carlo, 2e5 photons; solvers/diffusion/README.md, "Optically thick
+    // cells"), total fluence_diffuse at kappa h = 5, 10, 20: 1.08, 1.04, 1.00 under an overhead
+    // sun (before the split 2.1, 3.5, 5.9), 1.01, 1.00, 0.98 under a sun 32° from the zenith,
+    // 0.97-0.98 under the sky, 1.08, 0.98, 0.79 at albedo 0.9 with g 0.85 (rel L2 up to 0.27).
+    // Said by rank 0. Collective.
     static constexpr double kThickCell = 4.0;
     static void warn_if_cells_thick(const Decomposition& d, const Medium& m) {
         const double tau = max_cell_optical_depth(d, m);
         if (tau > kThickCell && d.rank() == 0)
             log::warn("model diffusion: cells up to {:.3g} optical depths thick: the field inside them is not "
-                      "resolved (total fluence_diffuse on a box of such cells against Monte Carlo: 0.97-1.08x "
-                      "under an overhead sun, 0.75-0.87x under an oblique one, at 5-20 per cell); refine the grid "
-                      "to about 1 per cell",
+                      "resolved (on a box of such cells the total fluence_diffuse is 0.79-1.08x Monte Carlo's at "
+                      "5-20 per cell, its rel L2 up to 0.27); refine the grid to about 1 per cell",
                       tau);
     }
     void check(const Scene&, const Decomposition& d, const Medium& m) const override {

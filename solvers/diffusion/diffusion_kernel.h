@@ -84,27 +84,21 @@ inline double langevin(double y) {
 
 // The share of a source in a full cell that leaves through one of its Marshak faces directly,
 // the source's centroid lying `offset` metres (0 <= offset <= h/2) from the centre toward the
-// face. Between the centre and the face (l = h/2) the source is split by the Green's function of
-// -D u'' + sigma_a u with both ends held: the face takes sinh(k offset) / sinh(k l),
-// k = sqrt(sigma_a / D) (offset / l as k -> 0, the linear hat weights); of what the face takes,
-// h / (h + 4D) leaves (the Marshak face of the ghost elimination) and the rest enters the cell.
-// A source at the centre (offset 0, a thin cell) stays; one at the face (a thick cell) mostly
-// leaves.
+// face: the Green's function of -D u'' + sigma_a u on the half cell between the centre (held,
+// u = 0: what reaches it stays in the cell) and the face (Marshak, u + 2D u' = 0, outflow u/2).
+// A unit source at distance d sends sinh(k d) / (sinh(k l) + 2 D k cosh(k l)) out through the
+// face, k = sqrt(sigma_a / D), l = h/2; d / (l + 2D) without absorption, which is the linear hat
+// share d/l times the h / (h + 4D) that the ghost elimination's Marshak face lets out. A source
+// at the centre (offset 0, a thin cell) stays; one at the face of a thick cell mostly leaves.
 inline double marshak_escape(double offset, double D, double sigma_a, double h) {
     const double l = 0.5 * h;
     if (!(offset > 0.0)) return 0.0;
     if (offset > l) offset = l;
-    const double kl = std::sqrt(sigma_a / D) * l;
-    double share;
-    if (kl < 1e-6) {
-        share = offset / l;
-    } else {
-        // sinh(k offset) / sinh(k l) = e^{k (offset - l)} (1 - e^{-2 k offset}) / (1 - e^{-2 k l}),
-        // finite for any k l.
-        const double ko = kl * (offset / l);
-        share = std::exp(ko - kl) * (-std::expm1(-2.0 * ko)) / (-std::expm1(-2.0 * kl));
-    }
-    return share * h / (h + 4.0 * D);
+    const double k = std::sqrt(sigma_a / D);
+    if (k * l < 1e-6) return offset / (l + 2.0 * D);
+    // Both sinh and cosh over e^{k l} / 2, finite for any k l.
+    const double e = std::exp(-2.0 * k * l);
+    return std::exp(k * (offset - l)) * -std::expm1(-2.0 * k * offset) / (1.0 - e + 2.0 * D * k * (1.0 + e));
 }
 
 // Fluence-per-4π flux through a face of full cell P, positive along +axis, from the solved U:

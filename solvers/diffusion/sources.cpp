@@ -93,12 +93,24 @@ DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const Lig
         means.report(fmt::format("{}", fmt::join(names, ", ")), *report);
     }
     const Box& dom = d.global();
+    const auto outside = [&](int a, int v) { return !d.periodic(a) && (v < dom.lo[a] || v >= dom.hi[a]); };
+    // Whether a full cell has a Marshak face: only such a cell has a sheet to split.
+    const auto on_surface = [&](int i, int j, int k) {
+        for (int a = 0; a < 3; ++a)
+            for (int side : {-1, 1}) {
+                int nb[3] = {i, j, k};
+                nb[a] += side;
+                if (outside(a, nb[a]) || p.kappa_tr(nb[0], nb[1], nb[2]) <= 0.0) return true;
+            }
+        return false;
+    };
     for (const std::vector<double>& weight : group.rhs_weights) {
         Field<double> Q0(d.local(), 0, 1, 0.0), G(d.local(), 1, 3, 0.0), escape(d.local(), 0, 3, 0.0);
         for_each_cell(d.local(), [&](int i, int j, int k) {
             if (p.kappa_tr(i, j, k) <= 0.0) return;
             const double rho = m.rho(i, j, k), h = m.grid.h;
             const SheetCell cell{s.sigma_t * rho * h, 1.0 / (3.0 * p.kappa_tr(i, j, k)), p.sigma_a(i, j, k), h};
+            const bool surface = on_surface(i, j, k);
             double e = 0.0, left = 0.0;  // the lights' sum of weight x <T'>, and of what leaves
             Vec3 ew, left_flux;
             for (size_t l = 0; l < nl; ++l) {
@@ -107,7 +119,7 @@ DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const Lig
                 const double et = weight[l] * means(static_cast<int>(l), i, j, k);
                 e += et;
                 ew += light.lights[l].w * et;
-                if (!(et > 0.0)) continue;
+                if (!surface || !(et > 0.0)) continue;
                 // The faces the light enters by: T' arriving through each Marshak one.
                 const Vec3& w = light.lights[l].w;
                 std::array<double, 3> t_in{-1.0, -1.0, -1.0};
@@ -115,7 +127,7 @@ DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const Lig
                     if (w[a] == 0.0) continue;
                     int nb[3] = {i, j, k};
                     nb[a] += w[a] > 0.0 ? -1 : 1;
-                    if (!d.periodic(a) && (nb[a] < dom.lo[a] || nb[a] >= dom.hi[a])) t_in[a] = 1.0;
+                    if (outside(a, nb[a])) t_in[a] = 1.0;
                     else if (p.kappa_tr(nb[0], nb[1], nb[2]) <= 0.0)
                         t_in[a] = light.transmittance(static_cast<int>(l), s.sigma_t, nb[0], nb[1], nb[2]);
                 }

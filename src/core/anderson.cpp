@@ -53,13 +53,16 @@ void AndersonMixer::set_mixing(double beta) {
 }
 
 std::vector<double> AndersonMixer::next(const std::vector<double>& x, const std::vector<double>& g) {
-    if (x.size() != g.size() || (!x_prev_.empty() && x.size() != x_prev_.size()))
+    if (x.size() != g.size() || (started_ && x.size() != x_prev_.size()))
         throw Error("Anderson acceleration: the vector changed length between iterations");
     const size_t n = x.size();
     std::vector<double> f(n);
     for (size_t i = 0; i < n; ++i) f[i] = g[i] - x[i];
 
-    if (!x_prev_.empty() && depth_ > 0) {
+    // started_, not !x_prev_.empty(): a rank whose share is empty (no cell of the medium) must
+    // keep the same history length as the others, or the reduction below mismatches
+    // (MPI_ERR_TRUNCATE with the flux limiter on 3 ranks, a review finding).
+    if (started_ && depth_ > 0) {
         std::vector<double> dx(n), df(n);
         for (size_t i = 0; i < n; ++i) {
             dx[i] = x[i] - x_prev_[i];
@@ -123,6 +126,7 @@ std::vector<double> AndersonMixer::next(const std::vector<double>& x, const std:
     }
     x_prev_ = x;
     f_prev_ = std::move(f);
+    started_ = true;
     f_prev_norm2_ = f_norm2;
     return out;
 }

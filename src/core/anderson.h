@@ -37,6 +37,7 @@ private:
     int depth_;
     double beta_;
     std::vector<double> x_prev_, f_prev_;
+    bool started_ = false;  // next() has run: x_prev_ and f_prev_ hold the last iterate
     double f_prev_norm2_ = 0.0;
     std::deque<std::vector<double>> dX_, dF_;  // oldest first
     int used_ = 0;

@@ -3,6 +3,7 @@
 #include <mpi.h>
 
 #include <algorithm>
+#include <array>
 
 #include <cmath>
 #include <limits>
@@ -33,7 +34,37 @@ double sinhc(double x) {
     return 0.5 * (e - 1.0 / e) / x;
 }
 
+// ∫_0^U u^n e^{-lambda u} du for n = 0, 1, 2 (U > 0, lambda >= 0): a series below x = lambda U
+// = 1/2 (the closed forms cancel there), the closed forms above.
+std::array<double, 3> exp_moments(double lambda, double U) {
+    const double x = lambda * U;
+    std::array<double, 3> m{};
+    if (x < 0.5) {
+        for (int n = 0; n < 3; ++n) {
+            double term = 1.0, sum = 0.0;  // Σ_k (-x)^k / (k! (n + k + 1))
+            for (int k = 0; k < 24; ++k) {
+                sum += term / (n + k + 1);
+                term *= -x / (k + 1);
+            }
+            m[static_cast<size_t>(n)] = std::pow(U, n + 1) * sum;
+        }
+        return m;
+    }
+    const double e = std::exp(-x);
+    m[0] = U * -std::expm1(-x) / x;
+    m[1] = U * U * (1.0 - e * (1.0 + x)) / (x * x);
+    m[2] = U * U * U * (2.0 - e * (2.0 + x * (2.0 + x))) / (x * x * x);
+    return m;
+}
+
 }  // namespace
+
+double LightTransport::face_mean(const Vec3& w, int a, double lambda) {
+    const double wa = std::abs(w[a]), wb = std::abs(w[(a + 1) % 3]), wc = std::abs(w[(a + 2) % 3]);
+    const double U = 1.0 / std::max({wa, wb, wc});
+    const std::array<double, 3> m = exp_moments(lambda, U);
+    return wa * (m[0] - (wb + wc) * m[1] + wb * wc * m[2]);
+}
 
 double LightTransport::transmittance_mean(const Decomposition& d, const Field<double>& rho, int light,
                                           double sigma_t, double h, int i, int j, int k) const {
@@ -69,6 +100,24 @@ double LightTransport::transmittance_mean(const Decomposition& d, const Field<do
         double log_mean = -depth;
         for (int a = 0; a < 3; ++a) log_mean += log_sinhc(x[a]);
         mean = std::exp(std::min(log_mean, 0.0));
+    }
+    // The light that enters by the faces with no medium beyond them (an empty cell, T of its
+    // centre, or the domain's face, T = 1) is a floor under the mean: the linear profile misses
+    // it where the cell's neighbours are lit through other faces (the side of a box under an
+    // oblique sun: its cells took <T> 300x too small at kappa h = 20, as the neighbour inside
+    // sees the light of the top face).
+    if (rc > 0.0) {
+        double floor = 0.0;
+        for (int a = 0; a < 3; ++a) {
+            if (w[a] == 0.0) continue;
+            int nb[3] = {i, j, k};
+            nb[a] += w[a] > 0.0 ? -1 : 1;
+            const bool inside = d.periodic(a) || (nb[a] >= dom.lo[a] && nb[a] < dom.hi[a]);
+            if (inside && rho(nb[0], nb[1], nb[2]) > 0.0) continue;
+            const double t_in = inside ? std::exp(-sigma_t * tau(nb[0], nb[1], nb[2])) : 1.0;
+            floor += t_in * face_mean(w, a, sigma_t * rc * h);
+        }
+        mean = std::max(mean, floor);
     }
     // What the cell removes from the beam bounds the mean: each ray through the cell loses
     // T_in (1 - e^{-kappa len}) <= 1, and the rays through a cube cover h² (|w_x| + |w_y| + |w_z|),

@@ -45,8 +45,16 @@ struct LightTransport {
     // cell can remove from the beam, Σ|w_a| / (kappa h), nor above 1. Exact for a homogeneous
     // medium under a plane boundary; d gives the domain and periodic axes, rho the density with
     // its ghost layer.
+    // Where a face the light enters the cell by has no medium beyond it, the light entering
+    // there alone gives T_beyond face_mean(w, a, kappa h), and the mean is never below their sum.
     double transmittance_mean(const Decomposition& d, const Field<double>& rho, int light, double sigma_t, double h,
                               int i, int j, int k) const;
+    // The mean over a homogeneous cube of optical thickness lambda = kappa h of T from the light
+    // (|w| = 1) entering by its face on axis a at T = 1 uniformly, over the points whose ray back
+    // toward the light leaves by that face: with u the path from the face in units of h,
+    //   |w_a| ∫_0^U e^{-lambda u} Π_{b != a} (1 - |w_b| u) du,   U = 1 / max_c |w_c|.
+    // The three faces' sum is 1 at lambda = 0 and |w_a| / lambda for a thick cube.
+    static double face_mean(const Vec3& w, int a, double lambda);
     // Reduced-incident fluence ∫ I_ri dw = Σ E0 T (W/m²) in band b at cell (i, j, k).
     double fluence_reduced(const Medium& m, int b, int i, int j, int k) const;
 };

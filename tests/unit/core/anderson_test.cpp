@@ -57,6 +57,18 @@ TEST(Anderson, SolvesALinearFixedPointInAsManyStepsAsEigenvalues) {
     EXPECT_EQ(aa.restarts(), 0);
 }
 
+TEST(Anderson, RanksWithoutEntriesKeepInStep) {
+    // The whole vector on rank 0, none on the others (a rank whose slab holds no cell of the
+    // medium): every rank must make the same reduction, and the answer is rank 0's alone. The
+    // history was kept only where the vector had entries, and 3 ranks of the flux limiter failed
+    // with MPI_ERR_TRUNCATE.
+    const int lo = 0, n = test::world_rank() == 0 ? kN : 0;
+    std::vector<double> x(static_cast<size_t>(n), 0.0);
+    AndersonMixer aa(MPI_COMM_WORLD, 5, 1.0);
+    for (int k = 0; k < 6; ++k) x = aa.next(x, apply_G(x, lo));
+    EXPECT_LT(error_to_fixed_point(x, lo), 1e-8);
+}
+
 TEST(Anderson, DepthZeroIsTheDampedIteration) {
     const auto [lo, hi] = my_range();
     std::vector<double> x(static_cast<size_t>(hi - lo), 0.0), y = x;

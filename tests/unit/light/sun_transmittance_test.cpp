@@ -2,8 +2,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 #include "solvers/light/exact_chain.h"
 #include "solvers/light/sun_transmittance.h"
@@ -90,13 +92,101 @@ TEST(SunTransmittance, CellMeanIsExactInAThickSlab) {
     }
 }
 
+// LightTransport::face_mean against the same light summed over its rays instead of its points:
+// a ray entering face a at q (uniform over the face) runs a chord L(q) through the cube before
+// it leaves by a far face, and contributes |w_a| (1 - e^{-lambda L}) / lambda (a midpoint rule
+// over 400² entry points; L is continuous in q). Also its limits: the faces' sum is 1 in a
+// transparent cube and each face's share |w_a| / lambda in a thick one, for light at any angle,
+// including a component of 1e-17, which must bring nothing rather than a face's worth.
+TEST(SunTransmittance, FaceMeanIsTheCubesIntegral) {
+    const std::vector<Vec3> ws = {Vec3{0.0, 0.0, -1.0}, normalized(Vec3{0.5, 0.0, -0.8}),
+                                  normalized(Vec3{0.5, 0.3, -0.8}), normalized(Vec3{0.97, 1e-17, -0.25})};
+    constexpr int kSub = 400;
+    for (const Vec3& w : ws) {
+        for (double lambda : {0.0, 0.3, 2.0, 20.0}) {
+            double sum = 0.0;
+            for (int a = 0; a < 3; ++a) {
+                const double wa = std::abs(w[a]), wb = std::abs(w[(a + 1) % 3]), wc = std::abs(w[(a + 2) % 3]);
+                double want = 0.0;
+                if (wa > 0.0)
+                    for (int u = 0; u < kSub; ++u)
+                        for (int v = 0; v < kSub; ++v) {
+                            const double qb = (u + 0.5) / kSub, qc = (v + 0.5) / kSub;
+                            double L = 1.0 / wa;  // the chord, in units of h
+                            if (wb > 0.0) L = std::min(L, (1.0 - qb) / wb);
+                            if (wc > 0.0) L = std::min(L, (1.0 - qc) / wc);
+                            want += wa * (lambda > 0.0 ? -std::expm1(-lambda * L) / lambda : L) / (kSub * kSub);
+                        }
+                const double got = LightTransport::face_mean(w, a, lambda);
+                sum += got;
+                // The reference's midpoint error is second order: 2.5e-5 of the value at lambda
+                // 20 with 400² points, 6e-6 with 800², 1.6e-6 with 1600² (checked once).
+                EXPECT_NEAR(got, want, 1e-4 * std::max(want, 1e-3))
+                    << "w " << w.x << " " << w.y << " " << w.z << ", lambda " << lambda << ", face " << a;
+            }
+            if (lambda == 0.0) {
+                EXPECT_NEAR(sum, 1.0, 1e-12);
+            }
+        }
+        for (int a = 0; a < 3; ++a) {
+            const double thick = 1e4;
+            EXPECT_NEAR(LightTransport::face_mean(w, a, thick), std::abs(w[a]) / thick, 1e-3 / thick);
+        }
+    }
+}
+
+// A 4³ box of cells 20 optical depths thick under a sun 32° from the zenith, exact light pass:
+// the light enters by the top and the sunward side. The cells on that side are lit through it,
+// while their neighbour inside is lit through the top; the difference toward it halved the
+// slope of tau along x, and the linear profile's mean of T was 300x too small. The light of
+// the faces with nothing beyond them is now a floor under the mean. Against each cell's exact
+// mean (a midpoint quadrature of e^{-kappa path} over 40³ points, the path back to the box
+// exact), the cells of the top and the sunward side must be within 10%, and the box must take
+// what the beam brings (its top and side, h² Σ|w_a| per face cell) within 10%.
+TEST(SunTransmittance, CellMeanTakesTheLightOfFacesWithNothingBeyond) {
+    const Int3 n{8, 8, 8};
+    const double h = 1.0, sigma_t = 20.0;
+    const auto in_box = [](int i, int j, int k) { return i >= 2 && i < 6 && j >= 2 && j < 6 && k >= 2 && k < 6; };
+    LitMedium s = make(MPI_COMM_WORLD, n, h, [&](int i, int j, int k) { return in_box(i, j, k) ? 1.0 : 0.0; });
+    const Vec3 w = normalized(Vec3{0.5, 0.0, -0.8});
+    Report r;
+    const auto lt = compute_light_transport(s.d, s.m, {{"sun", w, {1.0}}}, r, {}, LightSpec::Method::exact);
+    constexpr int kSub = 40;
+    double worst = 0.0, taken = 0.0;
+    for_each_cell(s.d.local(), [&](int i, int j, int k) {
+        if (!in_box(i, j, k)) return;
+        double exact = 0.0;
+        for (int a = 0; a < kSub; ++a)
+            for (int b = 0; b < kSub; ++b)
+                for (int c = 0; c < kSub; ++c) {
+                    const double p[3] = {i + (a + 0.5) / kSub, j + (b + 0.5) / kSub, k + (c + 0.5) / kSub};
+                    double path = 1e300;  // back along -w to the box's surface [2, 6]³
+                    for (int ax = 0; ax < 3; ++ax)
+                        if (w[ax] != 0.0) path = std::min(path, (w[ax] > 0.0 ? p[ax] - 2.0 : 6.0 - p[ax]) / std::abs(w[ax]));
+                    exact += std::exp(-sigma_t * path) / (kSub * kSub * kSub);
+                }
+        const double got = lt.transmittance_mean(s.d, s.m.rho, 0, sigma_t, h, i, j, k);
+        taken += sigma_t * h * got * h * h;
+        if (i == 2 || k == 5) worst = std::max(worst, std::abs(got / exact - 1.0));
+    });
+    MPI_Allreduce(MPI_IN_PLACE, &worst, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    MPI_Allreduce(MPI_IN_PLACE, &taken, 1, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+    const double brought = 16 * h * h * (std::abs(w.x) + std::abs(w.z));
+    if (test::world_rank() == 0) std::printf("lit cells' worst mean %.3g off; box took %.4f of the beam\n", worst, taken / brought);
+    EXPECT_LT(worst, 0.1);
+    EXPECT_NEAR(taken / brought, 1.0, 0.1);
+}
+
 // A staircase sphere (radius 4.3 cells) on a 2-cell ground layer, periodic x/y, under an oblique
 // sun, exact light pass: at its corners the neighbours' tau differences are no gradient (one lit,
 // one deep in shadow). Every cell mean stays below what a cell can take from the beam,
 // Σ|w_a| / (kappa h), and 1. Together the cells take what the beam brings (n_x n_y h² |w_z|) to
-// within the staircase's own error: 0.78, 1.08 and 1.33 of it at kappa h = 0.5, 2 and 32 (a
-// surface cell and the one behind it can both count as lit), where the unbounded means took
-// 6e27 of it at kappa h = 32 (dom's source power 1e6 x the incident on a dense sphere).
+// within the staircase's own error: 0.78, 1.12 and 1.43 of it at kappa h = 0.5, 2 and 32 (a
+// surface cell and the one behind it can both count as lit; the floor of the faces with nothing
+// beyond, T of the empty neighbour's centre over the whole face, added 0.04 and 0.10 to the
+// 1.08 and 1.33 before it, as a step's face is partly in the shadow of the step above), where
+// the unbounded means took 6e27 of it at kappa h = 32 (dom's source power 1e6 x the incident on
+// a dense sphere). FirstScatterMeans cuts the excess to what the beam loses.
 TEST(SunTransmittance, CellMeanNeverTakesMoreThanTheBeamBrings) {
     const Int3 n{12, 12, 12};
     const double h = 1.0;
@@ -122,8 +212,9 @@ TEST(SunTransmittance, CellMeanNeverTakesMoreThanTheBeamBrings) {
         MPI_Allreduce(MPI_IN_PLACE, &bounded, 1, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
         MPI_Allreduce(MPI_IN_PLACE, &over, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
         const double brought = n[0] * n[1] * h * h * std::abs(w.z);
+        if (test::world_rank() == 0) std::printf("staircase sphere, sigma_t %g: taken / brought %.3f\n", sigma_t, taken / brought);
         EXPECT_LE(over, 1.0) << sigma_t;
-        EXPECT_LT(taken, 1.4 * brought) << sigma_t;
+        EXPECT_LT(taken, 1.5 * brought) << sigma_t;
         EXPECT_GT(taken, 0.7 * brought) << sigma_t;
         // The ground layer leaves nothing through the bottom: the beam loses all it brings, and
         // the bounded means never take more (at kappa h = 32 they are cut to it).

@@ -173,9 +173,9 @@ TEST(DiffusionAnalytic, SlabUnderSunMatchesClosedFormP1) {
 // under the face, behind the half cell's diffusion resistance, and the slab's total of U came out
 // 1.27x, 2.02x and 5.79x the closed form's at kappa h = 2, 5 and 20 (overhead sun; the same
 // scheme in jobs/diffusion_thick_cells.py). With the sheet's direct escape (sources.cpp,
-// sheet_escape) the sheet's light is split between the centre and the face: measured 1.077,
-// 1.054, 0.951 overhead (as the script's "sheet" column) and 1.071, 1.039, 0.940 under the
-// oblique sun.
+// sheet_escape) the part of the sheet's light that the P1 Green's function sends through the
+// face leaves: measured 1.077, 1.055, 0.980 overhead (as the script's "sheet" column) and 1.071,
+// 1.040, 0.974 under the oblique sun.
 TEST(DiffusionAnalytic, ThickCellsKeepTheSlabsTotal) {
     const BandOptics band{"gray", 1.0, 0.999, 0.0};
     for (const Vec3& w : {Vec3{0.0, 0.0, -1.0}, normalized(Vec3{0.5, 0.3, -0.8})}) {

@@ -46,7 +46,12 @@ struct DomWorld {
         exchange_halo(tau, d);  // the light pass's contract: ghosts exchanged
         light.tau_rho.push_back(std::move(tau));
     }
-    SolveContext ctx() { return {scene, d, m, light, report}; }
+    // Collective: exchanges rho's ghost layer first (the Medium's contract, which the cell means
+    // of T rely on at a rank's faces; the tests set rho on the owned cells only).
+    SolveContext ctx() {
+        exchange_halo(m.rho, d);
+        return {scene, d, m, light, report};
+    }
 };
 
 // Decomposition-invariance check: the largest |a - b| of band 0's fluence and flux over the
