@@ -47,6 +47,9 @@ std::array<double, 3> sheet_escape(const SheetCell& c, const Vec3& w, const std:
         const double x = c.kappa_h / std::abs(w[a]);  // the sheet's optical depth across the cell
         share[a] = strength * std::abs(w[a]) * t_in[a] * -std::expm1(-x);
         sheets += share[a];
+        // What leaves is below d / (2D) <= (h x / 12) / (2D) (L(y) <= y/3): skip the functions
+        // where that is below 1e-9 (thin cells, most of a cloud's surface).
+        if (c.h * x / (24.0 * c.D) < 1e-9) continue;
         out[a] = marshak_escape(0.5 * c.h * langevin(0.5 * x), c.D, c.sigma_a, c.h);
     }
     if (!(sheets > 0.0)) return {};
