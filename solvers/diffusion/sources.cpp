@@ -125,15 +125,9 @@ DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const Lig
                 if (!surface || !(et > 0.0)) continue;
                 // The faces the light enters by: T' arriving through each Marshak one.
                 const Vec3& w = light.lights[l].w;
-                std::array<double, 3> t_in{-1.0, -1.0, -1.0};
-                for (int a = 0; a < 3; ++a) {
-                    if (w[a] == 0.0) continue;
-                    int nb[3] = {i, j, k};
-                    nb[a] += w[a] > 0.0 ? -1 : 1;
-                    if (outside(a, nb[a])) t_in[a] = 1.0;
-                    else if (p.kappa_tr(nb[0], nb[1], nb[2]) <= 0.0)
-                        t_in[a] = light.transmittance(static_cast<int>(l), s.sigma_t, nb[0], nb[1], nb[2]);
-                }
+                std::array<double, 3> t_in;
+                for (int a = 0; a < 3; ++a)
+                    t_in[a] = light.transmittance_beyond(d, m.rho, static_cast<int>(l), s.sigma_t, i, j, k, a);
                 const std::array<double, 3> out =
                     sheet_escape(cell, w, t_in, weight[l] * means.scale(static_cast<int>(l)), et);
                 for (int a = 0; a < 3; ++a) {

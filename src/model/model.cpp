@@ -68,6 +68,18 @@ double LightTransport::face_mean(const Vec3& w, int a, double lambda) {
     return wa * (m[0] - (wb + wc) * m[1] + wb * wc * m[2]);
 }
 
+double LightTransport::transmittance_beyond(const Decomposition& d, const Field<double>& rho, int light,
+                                            double sigma_t, int i, int j, int k, int a) const {
+    const Vec3& w = lights[static_cast<size_t>(light)].w;
+    if (w[a] == 0.0) return -1.0;
+    int nb[3] = {i, j, k};
+    nb[a] += w[a] > 0.0 ? -1 : 1;
+    const Box& dom = d.global();
+    if (!d.periodic(a) && (nb[a] < dom.lo[a] || nb[a] >= dom.hi[a])) return 1.0;
+    if (rho(nb[0], nb[1], nb[2]) > 0.0) return -1.0;
+    return transmittance(light, sigma_t, nb[0], nb[1], nb[2]);
+}
+
 double LightTransport::transmittance_mean(const Decomposition& d, const Field<double>& rho, int light,
                                           double sigma_t, double h, int i, int j, int k) const {
     const Field<double>& tau = tau_rho[static_cast<size_t>(light)];
@@ -110,33 +122,18 @@ double LightTransport::transmittance_mean(const Decomposition& d, const Field<do
     // sees the light of the top face).
     if (rc > 0.0) {
         const double lambda = sigma_t * rc * h;
-        // face_mean(w, a, lambda) <= min(face_mean(w, a, 0), |w_a| / lambda) and T_in <= 1: the
-        // exps and integrals only where the bare faces could lift the mean at all.
-        std::array<int, 3> bare{};  // 0: medium beyond (or parallel light), 1: empty cell, 2: outside
+        // face_mean(w, a, lambda) <= min(face_mean(w, a, 0), |w_a| / lambda): the integrals only
+        // where the faces could lift the mean at all.
+        std::array<double, 3> t_in{};  // T beyond each face the light enters by (0: medium there)
         double most = 0.0;
         for (int a = 0; a < 3; ++a) {
-            if (w[a] == 0.0) continue;
-            int nb[3] = {i, j, k};
-            nb[a] += w[a] > 0.0 ? -1 : 1;
-            const bool inside = d.periodic(a) || (nb[a] >= dom.lo[a] && nb[a] < dom.hi[a]);
-            if (inside && rho(nb[0], nb[1], nb[2]) > 0.0) continue;
-            bare[static_cast<size_t>(a)] = inside ? 1 : 2;
-            // face_mean(w, a, 0), the share of the cube's volume lit through face a
+            const double t = transmittance_beyond(d, rho, light, sigma_t, i, j, k, a);
+            if (t <= 0.0) continue;
+            t_in[static_cast<size_t>(a)] = t;
+            // face_mean(w, a, 0) in closed form: the share of the cube's volume lit through face a
             const double wa = std::abs(w[a]), wb = std::abs(w[(a + 1) % 3]), wc = std::abs(w[(a + 2) % 3]);
             const double U = 1.0 / std::max({wa, wb, wc});
-            most += std::min(wa * U * (1.0 - U * ((wb + wc) / 2.0 - U * wb * wc / 3.0)), wa / lambda);
-        }
-        std::array<double, 3> t_in{};  // T beyond each bare face the light enters by
-        if (most > mean) {
-            most = 0.0;
-            for (int a = 0; a < 3; ++a) {
-                if (bare[static_cast<size_t>(a)] == 0) continue;
-                int nb[3] = {i, j, k};
-                nb[a] += w[a] > 0.0 ? -1 : 1;
-                t_in[static_cast<size_t>(a)] =
-                    bare[static_cast<size_t>(a)] == 1 ? std::exp(-sigma_t * tau(nb[0], nb[1], nb[2])) : 1.0;
-                most += t_in[static_cast<size_t>(a)] * std::min(1.0, std::abs(w[a]) / lambda);
-            }
+            most += t * std::min(wa * U * (1.0 - U * ((wb + wc) / 2.0 - U * wb * wc / 3.0)), wa / lambda);
         }
         if (most > mean) {  // else the floor cannot lift the mean: spare the integrals
             double floor = 0.0;

@@ -49,6 +49,12 @@ struct LightTransport {
     // there alone gives T_beyond face_mean(w, a, kappa h), and the mean is never below their sum.
     double transmittance_mean(const Decomposition& d, const Field<double>& rho, int light, double sigma_t, double h,
                               int i, int j, int k) const;
+    // T (at sigma_t) arriving at the face on axis a by which the light enters cell (i, j, k),
+    // where no medium lies beyond that face: T of the empty cell beyond it, or 1 beyond a
+    // non-periodic domain face (tau_rho is 0 there). -1 where the cell beyond has density or the
+    // light runs parallel to the face. rho with its ghost layer.
+    double transmittance_beyond(const Decomposition& d, const Field<double>& rho, int light, double sigma_t, int i,
+                                int j, int k, int a) const;
     // The mean over a homogeneous cube of optical thickness lambda = kappa h of T from the light
     // (|w| = 1) entering by its face on axis a at T = 1 uniformly, over the points whose ray back
     // toward the light leaves by that face: with u the path from the face in units of h,
