@@ -22,6 +22,13 @@ Three ways to place each cell's first-scatter source are compared:
   spread  the same at the face, and in every other cell the source split toward the lit
           neighbour's centre by sinh(k d) / sinh(k h) (the linear hat weights as k -> 0): no
           better here, and in 3-D it would move sources between ranks.
+  sheet+G the sheet, and the lit cell's forward flux G (Q1 / kappa_tr, the same e^{-kappa z}
+          profile) split between the cell's two faces as the profile splits between its halves:
+          the face above takes 2p G, the face below 2(1 - p) G, p = 1 / (1 + e^{-kappa h / 2}),
+          where the scheme gives each the cell's G (so half of a thick cell's G reaches the
+          face below, where the true G is e^{-kappa h} of the top's). Not in the model: closer at
+          kappa h = 20 with albedo 0.9 (0.92 -> 1.00), further at 5-10 with albedo 0.999
+          (1.02 -> 1.04, 1.01 -> 1.05).
 The delta-Eddington rows solve with the model's scaled optics (delta_scaling.h).
 Usage: /usr/bin/python3 jobs/diffusion_thick_cells.py
 """
@@ -59,7 +66,10 @@ def solve_slab(ncell, depth, sigma_t, albedo, g, placement="centre"):
     source = q0 * h  # per unit area
     G = g * q0 / kappa_tr  # Q1 / kappa_tr, Q1 = g q0 w, w = +z (down)
     placed = source.copy()
-    if placement in ("sheet", "spread"):
+    split_g = np.zeros(ncell)  # the lit cell's G: face above G + split_g, face below G - split_g
+    if placement == "sheet+G":
+        split_g[0] = (2 / (1 + np.exp(-x / 2)) - 1) * G[0]
+    if placement in ("sheet", "spread", "sheet+G"):
         k = np.sqrt(sigma_a / D)
         d = 0.5 * h * (1 / np.tanh(x / 2) - 2 / x)  # centroid of e^{-sigma z} above the centre
 
@@ -91,16 +101,17 @@ def solve_slab(ncell, depth, sigma_t, albedo, g, placement="centre"):
                     lower[c] = -D / h
                 else:
                     upper[c] = -D / h
-                rhs[c] -= 0.5 * (G[c] + G[nb]) * n_out
+                # the face's G from each side: the cell's G, less split_g on its lower face
+                rhs[c] -= 0.5 * (G[c] - n_out * split_g[c] + G[nb] + n_out * split_g[nb]) * n_out
             else:  # Marshak: diagonal 2D/(h + 4D), rhs (n·G) h/(h + 4D), n = -n_out
                 diag[c] += 2 * D / (h + 4 * D)
-                rhs[c] -= n_out * G[c] * h / (h + 4 * D)
+                rhs[c] -= n_out * (G[c] - n_out * split_g[c]) * h / (h + 4 * D)
     return tridiagonal_solve(lower, diag, upper, rhs).sum() * h
 
 
 def main():
     print("total U of 4 cells / total U of 3000 cells, slab of 4 kappa h, overhead sun")
-    print(f"{'optics':>34} {'kappa h':>8} {'centre':>7} {'sheet':>7} {'spread':>7}")
+    print(f"{'optics':>34} {'kappa h':>8} {'centre':>7} {'sheet':>7} {'spread':>7} {'sheet+G':>7}")
     cases = [(0.999, 0.0, False), (0.9, 0.0, False), (0.5, 0.0, False),
              (0.999, 0.85, True), (0.9, 0.85, True), (0.99, 0.5, True)]
     for albedo, g, scaled in cases:
@@ -112,7 +123,7 @@ def main():
         for kh in (1, 2, 5, 10, 20):
             depth = 4 * kh / 1.0  # kappa h in units of the unscaled extinction (sigma_t = 1)
             fine = solve_slab(3000, depth, sigma_t, a, gg)
-            ratios = [solve_slab(4, depth, sigma_t, a, gg, p) / fine for p in ("centre", "sheet", "spread")]
+            ratios = [solve_slab(4, depth, sigma_t, a, gg, p) / fine for p in ("centre", "sheet", "spread", "sheet+G")]
             print(f"{label:>34} {kh:>8} " + " ".join(f"{r:7.3f}" for r in ratios))
 
 

@@ -152,17 +152,30 @@ DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const Lig
     return p;
 }
 
-bool forward_peak_transmittance(const LightTransport& light, const BandOptics& optics, bool delta_scaling,
-                                int i, int j, int k, double* dT) {
-    const DeltaScaledOptics s = delta_scale(optics.sigma_t, optics.albedo, optics.g, delta_scaling);
-    if (!(s.f > 0.0)) return false;
+void add_forward_peak(const Decomposition& d, const Medium& m, const LightTransport& light, const BandGroup& group,
+                      bool delta_scaling, std::vector<Field<double>>& fluence, std::vector<Field<double>>& flux) {
+    const BandOptics& o = group.optics;
+    const DeltaScaledOptics s = delta_scale(o.sigma_t, o.albedo, o.g, delta_scaling);
+    if (!(s.f > 0.0)) return;
+    // Light by light, so that each pass reads one light's tau_rho in order: on the bench cumulus
+    // at 128³ (one light, 1 rank) the bands step took 0.051 s, against 0.075 s cell by cell with
+    // the lights inside.
     for (size_t l = 0; l < light.lights.size(); ++l) {
-        // T' - T = e^{-sigma_t' tau} - e^{-sigma_t tau}; exactly 0 where the light is unattenuated
-        // (tau = 0: above and beside the medium), which spares both exps in most empty cells.
-        const double tau = light.tau_rho[l](i, j, k);
-        dT[l] = tau == 0.0 ? 0.0 : std::exp(-s.sigma_t * tau) - std::exp(-optics.sigma_t * tau);
+        const DirectionalLight& L = light.lights[l];
+        std::vector<std::pair<size_t, double>> e0;  // the group's bands this light shines in
+        for (const BandUse& use : group.bands)
+            if (const double e = band_value(L.E0, use.band); e != 0.0) e0.emplace_back(static_cast<size_t>(use.band), e);
+        if (e0.empty()) continue;
+        for_each_cell(d.local(), [&](int i, int j, int k) {
+            const double dT =
+                light.forward_peak_mean(d, m.rho, static_cast<int>(l), o.sigma_t, s.sigma_t, m.grid.h, i, j, k);
+            if (dT == 0.0) return;
+            for (const auto& [b, e] : e0) {
+                fluence[b](i, j, k) += e * dT;
+                for (int c = 0; c < 3; ++c) flux[b](i, j, k, c) += e * dT * L.w[c];
+            }
+        });
     }
-    return true;
 }
 
 }  // namespace nimbus::diffusion

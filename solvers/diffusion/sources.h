@@ -26,12 +26,12 @@ DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const Lig
                               bool delta_scaling = true, Report* report = nullptr);
 
 // The part of the diffuse fluence that the delta-Eddington scaling keeps in the reduced
-// incident field is Σ_lights E0[band] (T' - T) (W/m²), its flux Σ E0 (T' - T) w_light.
-// forward_peak_transmittance writes T' - T of every light at cell (i, j, k) of light's owned box
-// + ghost layer into dT[0 .. lights) (the same for every band of a group: T' and T depend on
-// the optics only) and returns false, writing nothing, when the scaling moves nothing (off, or
-// no forward peak). Not collective.
-bool forward_peak_transmittance(const LightTransport& light, const BandOptics& optics, bool delta_scaling,
-                                int i, int j, int k, double* dT);
+// incident field is Σ_lights E0[band] <T' - T> (W/m²), its flux Σ E0 <T' - T> w_light, with the
+// cell means of LightTransport::forward_peak_mean (the source integrates the cell's <T'>).
+// add_forward_peak adds them to fluence[b] and flux[b] of every band b of the group on the owned
+// cells; nothing when the scaling moves nothing (off, or no forward peak). m.rho and
+// light.tau_rho with their ghost layers. Not collective.
+void add_forward_peak(const Decomposition& d, const Medium& m, const LightTransport& light, const BandGroup& group,
+                      bool delta_scaling, std::vector<Field<double>>& fluence, std::vector<Field<double>>& flux);
 
 }  // namespace nimbus::diffusion

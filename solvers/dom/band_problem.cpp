@@ -103,13 +103,13 @@ FirstScatterMeans add_light_sources(BandProblem& p, const Decomposition& d, cons
         const auto& light = lt.lights[static_cast<size_t>(t)];
         const double e0 = E0[static_cast<size_t>(t)];
         for_each_cell(own, [&](int i, int j, int k) {
-            const double tau = o.sigma_t * lt.tau_rho[static_cast<size_t>(t)](i, j, k);
-            const double T = std::exp(-tau), Ts = std::exp(-scale * tau);
             // The source integrates over the cell: the cell's mean of the scaled beam's T (only
-            // where the cell scatters: 88% of the default cloud's cells do not).
+            // where the cell scatters: 88% of the default cloud's cells do not); the forward
+            // peak is the cell's mean of T' - T, as the fluence is a cell mean.
             if (p.sigma_s(i, j, k) != 0.0)
                 p.amp(i, j, k, l) = p.sigma_s(i, j, k) * e0 * means(t, i, j, k);
-            const double fwd = e0 * (Ts - T);
+            if (!(f > 0.0)) return;
+            const double fwd = e0 * lt.forward_peak_mean(d, m.rho, t, o.sigma_t, scale * o.sigma_t, m.grid.h, i, j, k);
             p.forward_fluence(i, j, k) += fwd;
             for (int c = 0; c < 3; ++c) p.forward_flux(i, j, k, c) += fwd * light.w[c];
         });

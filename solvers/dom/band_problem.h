@@ -12,7 +12,8 @@
 // scattering event is light that kept its direction; for the beam this is E0_l (T*_l - T_l)
 // travelling along w_l. It has been scattered, so it is diffuse light in DESIGN's split: it
 // is added to fluence_diffuse and flux_diffuse (forward_fluence/forward_flux below), exactly,
-// without any ray effect. With delta-M off (or g = 0) it is zero.
+// without any ray effect, as the cell's mean of T*_l - T_l (LightTransport::forward_peak_mean,
+// the mean that the source's <T*> is). With delta-M off (or g = 0) it is zero.
 //
 // Ownership: plain values. Fields on d.local() without ghosts unless stated.
 #pragma once
@@ -40,8 +41,8 @@ struct BandProblem {
     int nl = 0;
     Field<double> amp;                   // nl components: kappa* a* E0_l T*_l (W/m³)
     std::array<std::vector<double>, 8> light_phase;  // per octant nl x nd: p*_L(Ω_n·w_l), renormalized
-    Field<double> forward_fluence;       // Σ_l E0_l (T*_l - T_l) (W/m²)
-    Field<double> forward_flux;          // Σ_l E0_l (T*_l - T_l) w_l, 3 components
+    Field<double> forward_fluence;       // Σ_l E0_l <T*_l - T_l> (W/m²), cell means
+    Field<double> forward_flux;          // Σ_l E0_l <T*_l - T_l> w_l, 3 components
 };
 
 // Where p's sweep source can be nonzero (SourceRows, transport_sweep.h): the cells that scatter,
