@@ -163,6 +163,8 @@ check "info: thick cells are said" 0 "cells up to 5 optical depths thick: lpm's 
   info "${box[@]}" --set grid.cell_size=1 --set 'optics=[{name="gray",sigma_t=5.0,albedo=0.999,g=0.0}]'
 check "run: diffusion on thick cells warns" 0 "\[warning\] model diffusion: cells up to 5 optical depths thick" \
   run "${box[@]}" --set grid.cell_size=1 --set 'optics=[{name="gray",sigma_t=5.0,albedo=0.999,g=0.0}]' --set 'model.name="diffusion"' --out "$tmp/thick"
+check "run: dom on thick cells warns" 0 "\[warning\] model dom: cells up to 5 optical depths thick" \
+  run "${box[@]}" --set grid.cell_size=1 --set 'optics=[{name="gray",sigma_t=5.0,albedo=0.9,g=0.0}]' --set 'model.name="dom"' --out "$tmp/thick_dom"
 # Under a grazing sun over periodic x/y the cells' means of T took 1.9x the beam (QA); bounded and said.
 check "run: first-scatter bound warns" 0 "\[warning\] first-scatter source of light 'sun' in band 'gray': .* scaled down by 0\.523" \
   run "${box[@]}" --set "grid.n=[12,12,12]" --set grid.cell_size=1 --set "grid.periodic=[true,true,false]" \
