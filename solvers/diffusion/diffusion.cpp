@@ -61,12 +61,10 @@ public:
     // Said by rank 0. Collective.
     static constexpr double kThickCell = 4.0;
     static void warn_if_cells_thick(const Decomposition& d, const Medium& m) {
-        const double tau = max_cell_optical_depth(d, m);
-        if (tau > kThickCell && d.rank() == 0)
-            log::warn("model diffusion: cells up to {:.3g} optical depths thick: the field inside them is not "
-                      "resolved (on a box of such cells the total fluence_diffuse is 0.96-1.08x Monte Carlo's at "
-                      "5-20 per cell, its rel L2 up to 0.13); refine the grid to about 1 per cell",
-                      tau);
+        nimbus::warn_if_cells_thick(d, m, "diffusion", kThickCell,
+                                    "the field inside them is not resolved (on a box of such cells the total "
+                                    "fluence_diffuse is 0.96-1.08x Monte Carlo's at 5-20 per cell, its rel L2 up to "
+                                    "0.13); refine the grid to about 1 per cell");
     }
     void check(const Scene&, const Decomposition& d, const Medium& m) const override {
         check_layout(d);

@@ -71,13 +71,11 @@ class DiscreteOrdinates final : public ScatteringModel {
     // at 0.5 (S8 within 0.01 of S4). Said by rank 0. Collective.
     static constexpr double kThickCell = 4.0;
     static void warn_if_cells_thick(const Decomposition& d, const Medium& m) {
-        const double tau = max_cell_optical_depth(d, m);
-        if (tau > kThickCell && d.rank() == 0)
-            log::warn("model dom: cells up to {:.3g} optical depths thick: the field inside them is not resolved, "
-                      "and where they absorb their first scatter is absorbed on its way out (on a box of such cells "
-                      "the total fluence_diffuse is 0.80-0.99x Monte Carlo's at albedo 0.999, 1.2-1.6x at 0.9, "
-                      "at 5-20 per cell); refine the grid to about 1 per cell",
-                      tau);
+        nimbus::warn_if_cells_thick(d, m, "dom", kThickCell,
+                                    "the field inside them is not resolved, and where they absorb their first "
+                                    "scatter is absorbed on its way out (on a box of such cells the total "
+                                    "fluence_diffuse is 0.80-0.99x Monte Carlo's at albedo 0.999, 1.2-1.6x at 0.9, "
+                                    "at 5-20 per cell); refine the grid to about 1 per cell");
     }
 
 public:

@@ -67,12 +67,10 @@ namespace {
 // scattered at the medium's surface is blurred through the interior and the fluence comes out
 // too bright (README, "Known weaknesses"). Said once, by rank 0. Collective.
 void warn_if_cells_thick(const Decomposition& d, const Medium& m) {
-    const double tau_cell = max_cell_optical_depth(d, m);
-    if (tau_cell > kThickCellTau && d.rank() == 0)
-        log::warn("model psf: cells up to {:.3g} optical depths thick: its blur spreads the light scattered at the "
-                  "surface through the interior, so fluence_diffuse comes out too bright (total against Monte "
-                  "Carlo: 1.2x at 5, 1.7x at 10, 3.8x at 50 per cell on a box); refine the grid, or use dom",
-                  tau_cell);
+    nimbus::warn_if_cells_thick(d, m, "psf", kThickCellTau,
+                                "its blur spreads the light scattered at the surface through the interior, so "
+                                "fluence_diffuse comes out too bright (total against Monte Carlo: 1.2x at 5, 1.7x at "
+                                "10, 3.8x at 50 per cell on a box); refine the grid, or use dom");
 }
 
 }  // namespace

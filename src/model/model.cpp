@@ -327,4 +327,11 @@ double max_cell_optical_depth(const Decomposition& d, const Medium& m) {
     return rho_max * sigma_max * m.grid.h;
 }
 
+void warn_if_cells_thick(const Decomposition& d, const Medium& m, const std::string& model, double limit,
+                         const std::string& consequence) {
+    const double depth = max_cell_optical_depth(d, m);
+    if (depth > limit && d.rank() == 0)
+        log::warn("model {}: cells up to {:.3g} optical depths thick: {}", model, depth, consequence);
+}
+
 }  // namespace nimbus

@@ -170,6 +170,11 @@ std::vector<NegativeFluence> find_negative_fluence(const Decomposition& d, const
 // The largest optical depth of a cell, max over cells and bands of rho sigma_t h. Collective.
 double max_cell_optical_depth(const Decomposition& d, const Medium& m);
 
+// Where a cell is more than `limit` optical depths thick, rank 0 warns once:
+// "model <model>: cells up to <depth> optical depths thick: <consequence>". Collective.
+void warn_if_cells_thick(const Decomposition& d, const Medium& m, const std::string& model, double limit,
+                         const std::string& consequence);
+
 struct SolveContext {
     const Scene& scene;
     const Decomposition& decomp;
