@@ -65,9 +65,11 @@ struct LightTransport {
     // The cell mean of T' - T, T' = e^{-sigma_scaled tau} and T = e^{-sigma_t tau} (sigma_scaled <
     // sigma_t): the light a delta-scaled model (diffusion's delta-Eddington, dom's delta-M) keeps
     // in its reduced beam beyond the true one, its forward peak, which fluence_diffuse adds back.
-    // In a cell with density the difference of the two means of transmittance_mean's profile,
-    // never below the T' - T of the light entering by the faces with nothing beyond them, nor
-    // above transmittance_mean's bound: a cell-centred model's source integrates the cell's mean
+    // In a cell with density the difference of the two means of transmittance_mean's profile
+    // (its gradient scaled so that tau_rho >= 0 everywhere in the cell: on a staircase surface the
+    // neighbours' one-sided differences are no gradient), never below the T' - T of the light
+    // entering by the faces with nothing beyond them, nor above transmittance_mean's bound (test
+    // ForwardPeakOnAStaircaseSphereStaysNearTheCellsMean): a cell-centred model's source integrates the cell's mean
     // of T', and its fluence is a cell mean too (Monte Carlo's is); T' - T at the centre put the
     // peak of a lit cell at kappa h = 20 (delta-Eddington f = 0.72) 3x too low, and 10% too high
     // at kappa h = 1. In an empty cell T is constant along the light and the centre's T' - T is
@@ -97,7 +99,8 @@ private:
     };
     CellProfile profile(const Decomposition& d, const Field<double>& rho, int light, double h, int i, int j,
                         int k) const;
-    // tau_rho beyond the face on axis a by which the light enters (transmittance_beyond's, before the exp).
+    // tau_rho beyond the face on axis a by which the light enters (transmittance_beyond's, before the
+    // exp). profile() answers the same from the reads it makes anyway (CellProfile::tau_in).
     double tau_beyond(const Decomposition& d, const Field<double>& rho, int light, int i, int j, int k, int a) const;
 };
 
