@@ -66,7 +66,8 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
             res.U[r](i, j, k) = assembler.full(i, j, k) ? u : 0.0;
         });
         exchange_halo(res.U[r], d);
-        for_each_cell(d.local(), [&](int i, int j, int k) {
+        // Outside the region every cell is empty, and F there stays 0.
+        for_each_cell(res.region.box.intersect(d.local()), [&](int i, int j, int k) {
             const Vec3 F = assembler.flux(static_cast<int>(r), res.U[r], i, j, k);
             for (int c = 0; c < 3; ++c) res.flux[r](i, j, k, c) = F[c];
         });

@@ -67,23 +67,27 @@ BandResult solve_sources(const Decomposition& d, const Medium& m, const LightTra
     double source = 0.0;
     std::vector<bool> lit(nl);
     for (size_t l = 0; l < nl; ++l) lit[l] = strength[l] != 0.0;
-    const FirstScatterMeans means(light, d, m.rho, bo.sigma_t, m.grid.h, lit);
-    for (size_t l = 0; l < light.lights.size(); ++l) {
-        const DirectionalLight& dl = light.lights[l];
-        const double E0 = strength[l];
-        if (E0 == 0.0) continue;
-        const std::vector<double>& bf = ang.beam_factors(bo.g, dl.w);
-        for_each_cell(own, [&](int i, int j, int k) {
-            // The cell's mean of T (the deposit integrates the source over the cell), where the
-            // cell scatters.
-            const double ks = kappa(i, j, k) * bo.albedo;
-            if (ks == 0.0) return;
-            const double q = ks * E0 * means(static_cast<int>(l), i, j, k);
-            if (q == 0.0) return;
-            source += q * V;
-            double* u = &U(i, j, k);
-            for (int c = 0; c < nm; ++c) u[c] += q * bf[static_cast<size_t>(c)] / ang.coarse_solid_angle(c);
-        });
+    FirstScatterBound first_scatter;
+    {  // the means (and the copy they keep) only for this pass
+        const FirstScatterMeans means(light, d, m.rho, bo.sigma_t, m.grid.h, lit);
+        first_scatter = means.bound();
+        for (size_t l = 0; l < light.lights.size(); ++l) {
+            const DirectionalLight& dl = light.lights[l];
+            const double E0 = strength[l];
+            if (E0 == 0.0) continue;
+            const std::vector<double>& bf = ang.beam_factors(bo.g, dl.w);
+            for_each_cell(own, [&](int i, int j, int k) {
+                // The cell's mean of T (the deposit integrates the source over the cell), where the
+                // cell scatters.
+                const double ks = kappa(i, j, k) * bo.albedo;
+                if (ks == 0.0) return;
+                const double q = ks * E0 * means(static_cast<int>(l), i, j, k);
+                if (q == 0.0) return;
+                source += q * V;
+                double* u = &U(i, j, k);
+                for (int c = 0; c < nm; ++c) u[c] += q * bf[static_cast<size_t>(c)] / ang.coarse_solid_angle(c);
+            });
+        }
     }
     // Volume emission: isotropic, power/4π in every bin (W/(m³ sr)).
     if (!sources.empty())
@@ -102,7 +106,7 @@ BandResult solve_sources(const Decomposition& d, const Medium& m, const LightTra
     u_max0 = global_max(u_max0, d.comm());
 
     BandResult r;
-    r.first_scatter = means.bound();
+    r.first_scatter = first_scatter;
     r.source = global_sum(source, d.comm());
     Field<double> fluence(own, 1, 1, 0.0);
     Field<double> flux;

@@ -222,15 +222,27 @@ FirstScatterMeans::FirstScatterMeans(const LightTransport& lt, const Decompositi
     const Box own = d.local();
     std::vector<double> sums(2 * nl, 0.0);  // per light: taken, then lost
     const auto used = [&](size_t l) { return lit.empty() || lit[l]; };
+    int nused = 0;
+    for (size_t l = 0; l < nl; ++l) nused += used(l) ? 1 : 0;
+    if (nused > 0 && nused <= kMaxKeptLights) {
+        kept_ = Field<double>(own, 0, nused, 0.0);
+        kept_slot_.assign(nl, -1);
+        for (size_t l = 0, slot = 0; l < nl; ++l)
+            if (used(l)) kept_slot_[l] = static_cast<int>(slot++);
+    }
     for (size_t l = 0; l < nl; ++l) {
         if (!used(l)) continue;
         const Vec3& w = lt.lights[l].w;
         const int light = static_cast<int>(l);
+        const int slot = kept_slot_.empty() ? -1 : kept_slot_[l];
         const Field<double>& tau = lt.tau_rho[l];
         double taken = 0.0, lost = 0.0;
         for_each_cell(own, [&](int i, int j, int k) {
             const double r = rho(i, j, k);
-            if (r > 0.0) taken += sigma_t * r * h * h * h * lt.transmittance_mean(d, rho, light, sigma_t, h, i, j, k);
+            if (!(r > 0.0)) return;
+            const double mean = lt.transmittance_mean(d, rho, light, sigma_t, h, i, j, k);
+            if (slot >= 0) kept_(i, j, k, slot) = mean;
+            taken += sigma_t * r * h * h * h * mean;
         });
         // Each non-periodic face the light enters by has as many cells as the one it leaves by,
         // so in - out is the sum over the leaving face's cells of h² |w_a| (1 - T there): no

@@ -126,13 +126,22 @@ struct FirstScatterBound {
 // linear profile of transmittance_mean over-counts where tau bends inside cells on a scale it
 // cannot see: under a grazing sun over periodic x/y (w_z = -0.016) the cells took 1.9x the
 // beam. Holds references to lt, d and rho, which must outlive it. Collective construction.
+//
+// The pass that sums the means keeps them (one double per used light and owned cell, for at most
+// kMaxKeptLights used lights), so that the model's own pass over the cells reads them instead of
+// computing each a second time: on the bench cumulus at 128³ the second computation was 0.027 s
+// of diffusion's 0.079 s sources step.
 class FirstScatterMeans {
 public:
+    static constexpr int kMaxKeptLights = 16;
     // lit[l] false: light l is not used (no pass over the cells; scale 1); empty: all are.
     FirstScatterMeans(const LightTransport& lt, const Decomposition& d, const Field<double>& rho, double sigma_t,
                       double h, const std::vector<bool>& lit = {});
     // kappa <T> h³ of cell (i, j, k) is sigma_t rho h³ times this.
     double operator()(int light, int i, int j, int k) const {
+        const int slot = kept_slot_.empty() ? -1 : kept_slot_[static_cast<size_t>(light)];
+        if (slot >= 0 && kept_.owned().contains(i, j, k) && rho_(i, j, k) > 0.0)
+            return scale(light) * kept_(i, j, k, slot);
         return scale(light) * lt_.transmittance_mean(d_, rho_, light, sigma_t_, h_, i, j, k);
     }
     double scale(int light) const { return bound_.lights[static_cast<size_t>(light)].scale; }
@@ -148,6 +157,10 @@ private:
     const Field<double>& rho_;
     double sigma_t_, h_;
     FirstScatterBound bound_;
+    // The unscaled means of the cells with density, light l's in component kept_slot_[l] (-1: not
+    // kept); empty when more than kMaxKeptLights lights are used.
+    Field<double> kept_;
+    std::vector<int> kept_slot_;
 };
 
 struct DiffuseSolution {

@@ -402,6 +402,40 @@ TEST(SunTransmittance, FirstScatterMeansKeepToTheBeamUnderAGrazingSunOverPeriodi
     EXPECT_EQ(unlit.scale(0), 1.0);
 }
 
+// The means the constructor summed are the ones the models read (it keeps them so that the
+// models' pass need not compute them again): every cell, with density or not, gives exactly
+// scale x transmittance_mean, for the lights it carries, for one it does not, and with more
+// lights than it keeps (then nothing is kept and every mean is computed).
+TEST(SunTransmittance, FirstScatterMeansGiveWhatTheySummed) {
+    const Int3 n{10, 9, 12};
+    const double h = 2.0, sigma_t = 0.7;
+    LitMedium s = make(MPI_COMM_WORLD, n, h, [](int i, int j, int k) {
+        const double r2 = (i - 4.5) * (i - 4.5) + (j - 4.0) * (j - 4.0) + (k - 6.0) * (k - 6.0);
+        return r2 < 12.0 ? 0.2 + 0.1 * ((i + 2 * j + 3 * k) % 5) : 0.0; });
+    std::vector<DirectionalLight> lights;
+    for (int l = 0; l < FirstScatterMeans::kMaxKeptLights + 1; ++l)
+        lights.push_back({"light" + std::to_string(l), normalized(Vec3{0.3 * std::cos(l), 0.3 * std::sin(l), -1.0}), {1.0}});
+    Report r;
+    const auto lt = compute_light_transport(s.d, s.m, lights, r);
+    const auto check = [&](const FirstScatterMeans& means, const std::vector<int>& carried) {
+        int dense = 0;
+        for (const int l : carried)
+            for_each_cell(s.d.local(), [&](int i, int j, int k) {
+                dense += s.m.rho(i, j, k) > 0.0 ? 1 : 0;
+                const double exact = means.scale(l) * lt.transmittance_mean(s.d, s.m.rho, l, sigma_t, h, i, j, k);
+                ASSERT_EQ(means(l, i, j, k), exact) << "light " << l << " cell " << i << " " << j << " " << k;
+            });
+        MPI_Allreduce(MPI_IN_PLACE, &dense, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD);
+        EXPECT_GT(dense, 50);
+    };
+    // Two lights of the seventeen carried (kept), the rest not.
+    std::vector<bool> two(lights.size(), false);
+    two[3] = two[11] = true;
+    check(FirstScatterMeans(lt, s.d, s.m.rho, sigma_t, h, two), {3, 11, 5});
+    // All seventeen: more than are kept.
+    check(FirstScatterMeans(lt, s.d, s.m.rho, sigma_t, h), {0, 7, 16});
+}
+
 // The beam's loss through x faces, on ranks split along x (the exit layer on the last rank
 // only): a slab across x (cells 3..8 of 12, kappa h = 1.5) periodic in y and z under horizontal
 // light loses n_y n_z h² |w_x| (1 - e^{-6 kappa h / |w_x|}), which the exact means take; a thin
