@@ -40,10 +40,12 @@ public:
     // on the default cloud (1 rank, peak memory against pfmg-pcg's 292 MiB): smg-pcg +100 MiB,
     // smg +94, petsc +144, i.e. 23 and 33 values per cell (a QA finding: the check counted
     // pfmg-pcg's alone).
-    double memory_bytes(const Scene& s, const Decomposition& d, int) const override {
+    double memory_bytes(const Scene& s, const Decomposition& d, int nlights) const override {
         const double limiter = opt_.flux_limiter == "none" ? 0.0 : 21.0;
         const double solver = opt_.solver.rfind("smg", 0) == 0 ? 23.0 : opt_.solver == "petsc" ? 33.0 : 0.0;
-        return 8.0 * (26.0 + 7.0 * s.nbands() + limiter + solver) * static_cast<double>(d.local().cells());
+        // The sources step holds the first-scatter means it keeps (FirstScatterMeans), one per light.
+        const double kept = std::min(nlights, FirstScatterMeans::kMaxKeptLights);
+        return 8.0 * (26.0 + 7.0 * s.nbands() + limiter + solver + kept) * static_cast<double>(d.local().cells());
     }
     // solver = petsc: the decomposition and model.diffusion.petsc_options (linear_solve.h).
     // Warns of settings that run but rarely mean what they say.

@@ -31,12 +31,14 @@ public:
     // ny) nz) bytes of the rank's box. (Measured, 2 ranks: 96x96x8 at p = 24 peaks 42 MiB above
     // p = 6, the term gives 43; 48x48x32 at R = 4 5.7 MiB above R = 1, the term 6.3; 32x32x24 at
     // p = 40 15 MiB above the per-cell part, the term 22. A QA finding: p and R were left out.)
-    double memory_bytes(const Scene&, const Decomposition& d, int) const override {
+    double memory_bytes(const Scene&, const Decomposition& d, int nlights) const override {
         const Box& b = d.local();
         const double p2 = static_cast<double>(opt_.p) * opt_.p, r2 = static_cast<double>(opt_.refinement) * opt_.refinement;
         const double planes = static_cast<double>(b.size(0)) * b.size(1) +
                               2.0 * r2 * std::max(b.size(0), b.size(1)) * static_cast<double>(b.size(2));
-        return (186.0 + 8.0 * 6 * opt_.k * opt_.k) * static_cast<double>(b.cells()) + 8.0 * p2 * planes;
+        // The source pass holds the first-scatter means it keeps (FirstScatterMeans), one per light.
+        const double kept = 8.0 * std::min(nlights, FirstScatterMeans::kMaxKeptLights);
+        return (186.0 + 8.0 * 6 * opt_.k * opt_.k + kept) * static_cast<double>(b.cells()) + 8.0 * p2 * planes;
     }
     // Before the light pass: what the map sweeps need of the decomposition (and odd p's warning).
     void check_layout(const Decomposition& d) const override { check_decomposition(d); }

@@ -62,6 +62,18 @@ TEST(MemoryEstimate, EachModelAddsItsStorage) {
                      8.0 * 23 * static_cast<double>(d.local().cells()));
     EXPECT_DOUBLE_EQ(estimate("diffusion", [](Scene& s) { s.model.diffusion.solver = "petsc"; }) - pfmg,
                      8.0 * 33 * static_cast<double>(d.local().cells()));
+    // Diffusion and LPM hold the first-scatter means they keep, one double per cell and light
+    // term, at most FirstScatterMeans::kMaxKeptLights (16): the sky's 8 directions and the sun are
+    // 9 terms, 12 directions 13, 40 directions 41 (16 kept). The light pass's own storage per term
+    // is in single's estimate as well and cancels.
+    const auto model_part = [](const char* m, void (*tweak)(Scene&)) { return estimate(m, tweak) - estimate("single", tweak); };
+    const auto sky12 = [](Scene& s) { s.sky.directions = 12; };
+    const auto sky40 = [](Scene& s) { s.sky.directions = 40; };
+    const double cells = static_cast<double>(d.local().cells());
+    for (const char* m : {"diffusion", "lpm"}) {
+        EXPECT_DOUBLE_EQ(model_part(m, sky12) - model_part(m, nullptr), 8.0 * 4 * cells) << m;
+        EXPECT_DOUBLE_EQ(model_part(m, sky40) - model_part(m, nullptr), 8.0 * 7 * cells) << m;
+    }
     // PSF: a rank's share does not shrink as 1/P: level 0 keeps 3 ghost layers each side, and on
     // more than one rank the light depths are gathered over the layers a rank marches (the
     // estimate scaled as cells / P and was 24-27% below the measured peak at 2-4 ranks).
