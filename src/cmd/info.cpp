@@ -200,7 +200,8 @@ void info(const RunOptions& opts, int plan_ranks) {
         advice += fmt::format("; cells up to {:.3g} optical depths thick: lpm's P1 tail comes out too bright there "
                               "(1.7x Monte Carlo at 5 per cell, 5.4x at 20); 'diffusion' (0.96-1.08x on a box at 5-20 "
                               "per cell) and 'dom' (0.80-1.16x, but 1.2-1.6x with absorption, albedo 0.5-0.9) do not resolve the field; refine "
-                              "the grid to about 1 per cell",
+                              "the grid to about 1 per cell ('dom' with its step scheme to well under 1 per cell of "
+                              "transport depth where the albedo is near 1: its run says how much it over-diffuses)",
                               cell_tau);
     say(comm, "models in this build: {}; this scene is {}", fmt::format("{}", fmt::join(available_models(), ", ")), advice);
     say(comm, "model asked for: '{}'", s.model.name);
