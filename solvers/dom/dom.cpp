@@ -95,9 +95,7 @@ class DiscreteOrdinates final : public ScatteringModel {
     static constexpr double kStepExcessDiffusion = 0.4, kBrightAlbedo = 0.95;
     void warn_if_step_diffuses(const Decomposition& d, const Medium& m) const {
         if (opt_.scheme != "step") return;
-        double rho_max = 0.0;
-        for_each_cell(d.local(), [&](int i, int j, int k) { rho_max = std::max(rho_max, m.rho(i, j, k)); });
-        MPI_Allreduce(MPI_IN_PLACE, &rho_max, 1, MPI_DOUBLE, MPI_MAX, d.comm());
+        const double rho_max = max_density(d, m);
         double excess = 0.0;
         const BandOptics* worst = nullptr;
         for (const BandOptics& o : m.bands) {

@@ -331,12 +331,17 @@ std::vector<NegativeFluence> find_negative_fluence(const Decomposition& d, const
     return found;
 }
 
-double max_cell_optical_depth(const Decomposition& d, const Medium& m) {
-    double rho_max = 0.0, sigma_max = 0.0;
+double max_density(const Decomposition& d, const Medium& m) {
+    double rho_max = 0.0;
     for_each_cell(d.local(), [&](int i, int j, int k) { rho_max = std::max(rho_max, m.rho(i, j, k)); });
     MPI_Allreduce(MPI_IN_PLACE, &rho_max, 1, MPI_DOUBLE, MPI_MAX, d.comm());
+    return rho_max;
+}
+
+double max_cell_optical_depth(const Decomposition& d, const Medium& m) {
+    double sigma_max = 0.0;
     for (const BandOptics& o : m.bands) sigma_max = std::max(sigma_max, o.sigma_t);
-    return rho_max * sigma_max * m.grid.h;
+    return max_density(d, m) * sigma_max * m.grid.h;
 }
 
 void warn_if_cells_thick(const Decomposition& d, const Medium& m, const std::string& model, double limit,

@@ -183,6 +183,8 @@ std::vector<NegativeFluence> find_negative_fluence(const Decomposition& d, const
                                                    const DiffuseSolution& out,
                                                    double share = kNegativeFluenceShare);
 
+// The largest density of any cell, over all ranks. Collective.
+double max_density(const Decomposition& d, const Medium& m);
 // The largest optical depth of a cell, max over cells and bands of rho sigma_t h. Collective.
 double max_cell_optical_depth(const Decomposition& d, const Medium& m);
 
