@@ -9,12 +9,15 @@
 // the additions wait. Work: a rank traces every ray that crosses its slab, so ranks nearer the
 // light trace more (the price of not replicating the density).
 //
-// The rays are walked by the grid walk of the Monte Carlo paths (src/core/grid_walk.h): exact
-// cell traversal that crosses empty regions in one step per empty cube (empty_space.h), which
-// made the default cloud's 9 light terms ~2.5x cheaper than a cell-by-cell march. The cells'
-// rays are traced in columns along the light (for_each_cell_along), so that each ray finds the
-// cells the previous one crossed still in cache: 1.7-1.9x faster than x-fastest order on 128³
-// and 256³ (jobs/bench_foundation.sh), where the walk used to wait on its voxel loads.
+// The rays of one layer are translates of each other: the ray from cell (i, j, k) is the ray
+// from (0, 0, k) moved by (i, j) whole cells (a light's rays are parallel, and the pieces of
+// downstream rays enter a slab at points that differ by whole cells too), so they cross the
+// same cells, shifted by (i, j), for the same lengths. The pass walks one ray per layer (the
+// DDA of grid_walk.h, ray_cells) and sums len x rho over its cells for every translate at once:
+// for each row of the layer and each cell of that ray, a run of the row's sums takes len times
+// a run of a density row (integrate_layer), contiguous in x, without a walk's dependent steps.
+// Runs are clipped to the x range of each density row that holds density, so empty space costs
+// a test per row and ray cell.
 #pragma once
 
 #include <algorithm>
@@ -25,7 +28,6 @@
 #include <vector>
 
 #include "src/core/decomposition.h"
-#include "src/core/empty_space.h"
 #include "src/core/field.h"
 #include "src/core/grid_walk.h"
 #include "src/core/vec3.h"
@@ -33,53 +35,65 @@
 
 namespace nimbus {
 
-// A box of cells (a rank's slab, or the whole domain) prepared for ray integrals: the walk's
-// voxels mark the non-empty cells and their empty-space distances, and each voxel's double
-// (Voxel::tally, the Monte Carlo's accumulator) holds the cell's density, so the sums stay in
-// double precision and a step reads one 16-byte voxel (16 bytes per cell in all).
+// A box of cells (a rank's slab, or the whole domain) prepared for the layer integrals: the
+// density row by row (x fastest over box) with each row's x range of density. 8 bytes per cell.
 struct RayGrid {
+    std::array<bool, 3> periodic;  // the domain's x/y; never z (rays stop at z faces)
+    Box box;                       // the cells covered; the domain's whole x and y ranges
+    Int3 domain{0, 0, 0};          // the domain's cells
+    std::vector<double> rho;       // box.cells() values, x fastest
+    // Per row (j, k) of box, at (k - box.lo[2]) * box.size(1) + (j - box.lo[1]): the x range
+    // [lo, hi) of its cells with density (global x; lo = hi when the row is empty).
+    std::vector<int> row_lo, row_hi;
+    // The grid walk's voxels (grid_walk.h: the density in Voxel::tally, the empty-space
+    // distances), for ray_integral only: empty unless add_voxels. 16 bytes per cell.
     VoxelGrid voxels;
-    std::array<bool, 3> periodic;  // of the walk: the domain's x/y; never z (rays stop at z faces)
 };
 
-// box: the cells to cover (their global density from rho_of(i, j, k)); n: the domain's cells.
+// box: the cells to cover (their global density from rho_of(i, j, k)), spanning the domain's x
+// and y; n: the domain's cells.
 template <class RhoOf>
 RayGrid make_ray_grid(const Box& box, const Int3& n, const std::array<bool, 3>& domain_periodic, RhoOf&& rho_of);
+
+// Builds g's voxels from its density (for ray_integral).
+void add_voxels(RayGrid& g);
 
 // ∫ rho ds (in cell units: multiply by h) along the ray from pos (global cell coordinates) in
 // unit direction b, through the cells of g, until it leaves g's z range or, on a non-periodic
 // axis, the domain's x/y range (periodic x/y wrap; g then spans the domain along them). A point
-// on a cell face belongs to the cell the ray moves into. Pure.
+// on a cell face belongs to the cell the ray moves into. One ray's walk (grid_walk.h, with its
+// empty-space jumps): the reference the layer integrals are tested against. Needs add_voxels.
 double ray_integral(RayGrid& g, const Vec3& b, const std::array<double, 3>& pos);
-// The same for two rays of direction b at once, walked in lockstep (walk_through_pair): the
-// two integrals ray_integral gives, bit for bit, in 70-75% of the time.
-void ray_integral_pair(RayGrid& g, const Vec3& b, const std::array<double, 3>& pos_a,
-                       const std::array<double, 3>& pos_b, double& integral_a, double& integral_b);
 
-// ray_integral for every cell of box, in for_each_cell_along's order and two rays at a time:
-// start(i, j, k) gives where the cell's ray starts, store(i, j, k, p, integral) takes the result
-// (p: the cell's x-fastest index in box).
-template <class Start, class Store>
-void integrate_rays_along(RayGrid& g, const Box& box, const Vec3& b, Start&& start, Store&& store);
+// A cell a ray crosses (global coordinates, not wrapped around periodic axes) and the length of
+// the ray in it (cell units).
+struct RaySegment {
+    Int3 cell;
+    double len;
+};
 
-// The walk's state for that ray (ray_integral's start): false if pos is outside g's cells.
-bool ray_start(RayGrid& g, const Vec3& b, const std::array<double, 3>& pos, PathState& s);
+// The cells, in order, that the ray from pos in unit direction b crosses while it is inside g's z
+// range and, on each non-periodic x/y axis, while the ray moved by some translate (i, j) of
+// `cells` (i in [cells.lo[0], cells.hi[0]), j likewise) is still, or not yet, inside the domain:
+// the cells of the ray from pos + (i, j) are these plus (i, j), wrapped on periodic axes, and
+// outside the domain on a non-periodic one (density 0: the ray has left it for good). A point
+// on a cell face belongs to the cell the ray moves into (as in ray_integral). The incremental DDA of
+// grid_walk.h without its empty-space jumps. Pure; out is cleared first.
+void ray_cells(const RayGrid& g, const Box& cells, const Vec3& b, const std::array<double, 3>& pos,
+               std::vector<RaySegment>& out);
+
+// Layer k of `cells` (a box inside the domain's x/y ranges): out[(j - lo_j) * nx + (i - lo_i)]
+// = ∫ rho ds (cell units) along the piece through g of the ray from each cell (i, j, k), which
+// starts where piece_start puts it (downstream, z_entry). Equal to ray_integral from that point
+// up to round-off (the same cells and the same sum order; lengths from one walk). segments:
+// scratch for ray_cells. out holds cells' nx x ny values.
+void integrate_layer(const RayGrid& g, const Box& cells, const Vec3& b, int k, bool downstream, double z_entry,
+                     std::vector<RaySegment>& segments, double* out);
 
 // Where a slab's piece of the ray from the centre of cell (i, j, k) starts: the centre itself,
 // or for a cell downstream of the slab (`downstream`) the point where the ray crosses the
 // slab's entry face z = z_entry (b.z != 0).
 std::array<double, 3> piece_start(const Vec3& b, int i, int j, int k, bool downstream, double z_entry);
-
-// Calls fn(i, j, k, p) once for every cell of box, p being the cell's index in x-fastest order
-// (for_each_cell's), in an order that keeps consecutive rays toward the light on the same cells:
-// columns of tile x tile cells sheared along b (layer k shifted by floor(k b_xy / b_z) cells, so
-// a column follows one ray line), each column from its lowest layer to its highest. A cell's ray
-// then crosses what the ray of the cell below it crossed one step earlier, and the walk finds
-// its cells in cache; in x-fastest order the next ray over the same cells came a whole layer
-// of rays later. Horizontal or nearly horizontal b (a shear wider than the box allows) keeps
-// x-fastest order. The results do not depend on the order: every ray is integrated on its own.
-template <class Fn>
-void for_each_cell_along(const Box& box, const Vec3& b, Fn&& fn, int tile = 8);
 
 // Collective over d.comm(); slabs along z. tau_rho (owned box, ghosts untouched) of one light;
 // slab = make_slab_grid(d, rho) (built once for all lights). busy_seconds (if given) gets this
@@ -93,80 +107,24 @@ void exact_tau_chain(const Decomposition& d, RayGrid& slab, double h, const Dire
 
 template <class RhoOf>
 RayGrid make_ray_grid(const Box& box, const Int3& n, const std::array<bool, 3>& domain_periodic, RhoOf&& rho_of) {
-    const std::array<int, 3> m{box.hi[0] - box.lo[0], box.hi[1] - box.lo[1], box.hi[2] - box.lo[2]};
-    // kappa only marks the non-empty cells (the integral reads rho): a density too small for a
-    // float stays non-empty.
-    std::vector<float> mark(static_cast<size_t>(box.cells()), 0.0f);
+    const Int3 m = box.shape();
+    RayGrid g;
+    g.periodic = {domain_periodic[0], domain_periodic[1], false};
+    g.box = box;
+    g.domain = n;
+    g.rho.resize(static_cast<size_t>(box.cells()));
+    g.row_lo.assign(static_cast<size_t>(m[1]) * m[2], 0);
+    g.row_hi.assign(static_cast<size_t>(m[1]) * m[2], 0);
     size_t c = 0;
     for_each_cell(box, [&](int i, int j, int k) {
         const double r = rho_of(i, j, k);
-        mark[c++] = r > 0 ? std::max(static_cast<float>(r), std::numeric_limits<float>::min()) : 0.0f;
-    });
-    RayGrid g{make_voxels(m, mark), {domain_periodic[0], domain_periodic[1], false}};
-    g.voxels.origin = {box.lo[0], box.lo[1], box.lo[2]};
-    g.voxels.domain = {n[0], n[1], n[2]};
-    const GridView v = g.voxels.view(g.periodic);
-    for_each_cell(box, [&](int i, int j, int k) {
-        v.voxel[v.index({i - box.lo[0], j - box.lo[1], k - box.lo[2]})].tally = rho_of(i, j, k);
+        g.rho[c++] = r;
+        if (!(r > 0)) return;
+        const size_t row = static_cast<size_t>(k - box.lo[2]) * m[1] + (j - box.lo[1]);
+        if (g.row_lo[row] == g.row_hi[row]) g.row_lo[row] = i;
+        g.row_hi[row] = i + 1;
     });
     return g;
-}
-
-template <class Start, class Store>
-void integrate_rays_along(RayGrid& g, const Box& box, const Vec3& b, Start&& start, Store&& store) {
-    bool held = false;  // a ray waiting for its partner
-    std::array<double, 3> held_pos{};
-    std::array<int, 3> held_cell{};
-    std::int64_t held_p = 0;
-    for_each_cell_along(box, b, [&](int i, int j, int k, std::int64_t p) {
-        const std::array<double, 3> pos = start(i, j, k);
-        if (!held) {
-            held = true, held_pos = pos, held_cell = {i, j, k}, held_p = p;
-            return;
-        }
-        double first, second;
-        ray_integral_pair(g, b, held_pos, pos, first, second);
-        store(held_cell[0], held_cell[1], held_cell[2], held_p, first);
-        store(i, j, k, p, second);
-        held = false;
-    });
-    if (held) store(held_cell[0], held_cell[1], held_cell[2], held_p, ray_integral(g, b, held_pos));
-}
-
-template <class Fn>
-void for_each_cell_along(const Box& box, const Vec3& b, Fn&& fn, int tile) {
-    const Int3 m = box.shape();
-    if (box.empty()) return;
-    tile = std::max(tile, 1);
-    auto plain = [&] {
-        std::int64_t p = 0;
-        for_each_cell(box, [&](int i, int j, int k) { fn(i, j, k, p++); });
-    };
-    // Cells per layer that a ray line moves along x and y; the column loop below runs
-    // tiles x layers iterations, so a shear that makes them many times the cells is not worth it.
-    const double sx = b.x / b.z, sy = b.y / b.z;  // b.z = 0: inf or nan, refused below
-    const double reach_x = std::abs(sx) * m[2], reach_y = std::abs(sy) * m[2];
-    if (!(reach_x <= 4.0 * m[0] + 64 && reach_y <= 4.0 * m[1] + 64)) return plain();
-    std::vector<int> ox(static_cast<size_t>(m[2])), oy(static_cast<size_t>(m[2]));
-    for (int k = 0; k < m[2]; ++k) {
-        ox[static_cast<size_t>(k)] = floor_to_int(sx * k);
-        oy[static_cast<size_t>(k)] = floor_to_int(sy * k);
-    }
-    const auto [ox_lo, ox_hi] = std::minmax_element(ox.begin(), ox.end());
-    const auto [oy_lo, oy_hi] = std::minmax_element(oy.begin(), oy.end());
-    // Layer k's cell i is column i - ox[k], in [-max ox, m0 - min ox): the tiles cover that range.
-    for (int tj = -*oy_hi; tj < m[1] - *oy_lo; tj += tile)
-        for (int ti = -*ox_hi; ti < m[0] - *ox_lo; ti += tile)
-            for (int k = 0; k < m[2]; ++k) {
-                const int i0 = std::max(0, ti + ox[static_cast<size_t>(k)]);
-                const int i1 = std::min(m[0], ti + tile + ox[static_cast<size_t>(k)]);
-                const int j0 = std::max(0, tj + oy[static_cast<size_t>(k)]);
-                const int j1 = std::min(m[1], tj + tile + oy[static_cast<size_t>(k)]);
-                for (int j = j0; j < j1; ++j)
-                    for (int i = i0; i < i1; ++i)
-                        fn(box.lo[0] + i, box.lo[1] + j, box.lo[2] + k,
-                           (static_cast<std::int64_t>(k) * m[1] + j) * m[0] + i);
-            }
 }
 
 }  // namespace nimbus

@@ -9,11 +9,9 @@
 
 #include "src/core/error.h"
 #include "solvers/light/exact_chain.h"
-#include "solvers/light/light_slabs.h"
 #include "src/core/gather.h"
 #include "src/core/halo.h"
 #include "src/core/progress.h"
-#include "src/core/relayout.h"
 
 namespace nimbus {
 namespace {
@@ -81,97 +79,27 @@ int segment_axis(const Decomposition& d, const Vec3& w) {
     return m;
 }
 
-// The exact pass on slabs along z: the slab chain (exact_chain.h) on slabs balanced by the
-// pilot's counted work (light_slabs.h). Lights toward +z share one set of slabs, lights toward
-// -z another; horizontal lights keep the field's (each rank traces its own rays alone). Fills
-// tau_rho (field slabs, halos exchanged) and returns the report's entry.
+// The exact pass on the field's slabs along z: the slab chain (exact_chain.h), one light after
+// the other; horizontal lights leave every rank on its own. Fills tau_rho (halos exchanged) and
+// returns the report's entry, with the chain's balance: the busiest rank's tracing against the
+// mean (waits excluded). A rank traces the pieces of every ray that crosses its slab, so ranks
+// nearer the light trace more: up to about twice the mean in a uniform medium on many ranks.
 nlohmann::json exact_light_on_chain(const Decomposition& d, const Medium& m, const std::vector<DirectionalLight>& lights,
                                     std::vector<Field<double>>& tau_rho, Progress& progress) {
-    const Int3 n = d.global().shape();
-    const std::array<bool, 3> periodic{d.periodic(0), d.periodic(1), d.periodic(2)};
-    const std::vector<int> field_cuts = d.cuts(2);
-    // The field's slab of the density, for the pilot and for the lights traced on field slabs.
-    RayGrid field_grid = make_slab_grid(d, m.rho);
-    struct Side {
-        std::vector<size_t> members;  // light indices
-        std::vector<int> cuts;
-    };
-    std::vector<Side> sides(3);  // rays toward +z, toward -z, horizontal
-    for (size_t l = 0; l < lights.size(); ++l) {
-        const double bz = -lights[l].w.z;
-        sides[bz > 0 ? 0 : (bz < 0 ? 1 : 2)].members.push_back(l);
-    }
-    nlohmann::json slabs = nlohmann::json::array();
-    const int stride = pilot_stride(n);
-    const auto balance = [](const ChainWork& w, const std::vector<int>& cuts) {
-        const double mean = w.mean_cost(cuts);
-        return mean > 0 ? w.max_cost(cuts) / mean : 1.0;
-    };
-    for (size_t side = 0; side < sides.size(); ++side) {
-        Side& sd = sides[side];
-        sd.cuts = field_cuts;
-        if (sd.members.empty() || side == 2 || d.size() == 1) continue;
-        std::vector<DirectionalLight> members;
-        for (const size_t l : sd.members) members.push_back(lights[l]);
-        const ChainWork work = sample_chain_work(d, field_grid, members, stride);
-        sd.cuts = balanced_cuts(work, d.dims()[2]);
-        slabs.push_back({{"toward", side == 0 ? "+z" : "-z"}, {"lights", sd.members.size()}, {"z_cuts", sd.cuts},
-                         {"field_z_cuts", field_cuts}, {"pilot_rays", work.rays},
-                         // The pilot's work model: busiest slab over the mean, on the field's
-                         // slabs and on the pass's.
-                         {"modelled_balance_field", balance(work, field_cuts)}, {"modelled_balance", balance(work, sd.cuts)}});
-    }
-    // Which slabs the lights are traced on: the field's (its grid is kept) or their side's own
-    // (the density is moved there).
-    const auto traced_on_own_slabs = [&](bool own) {
-        return std::any_of(sides.begin(), sides.end(),
-                           [&](const Side& sd) { return !sd.members.empty() && (sd.cuts != field_cuts) == own; });
-    };
-    if (!traced_on_own_slabs(false)) field_grid = RayGrid{};
-    const std::vector<double> rho_mine = traced_on_own_slabs(true) ? m.rho.owned_values() : std::vector<double>{};
+    RayGrid grid = make_slab_grid(d, m.rho);
     double busy_total = 0.0;  // this rank's tracing on the chain, all lights
-    double done = 0.0;
-    for (const Side& sd : sides) {
-        if (sd.members.empty()) continue;
-        const bool own_slabs = sd.cuts != field_cuts;
-        const Decomposition ld = own_slabs ? d.with_cuts(2, sd.cuts) : d;
-        RayGrid moved;
-        if (own_slabs) {
-            const Box box = ld.local();
-            const Int3 bs = box.shape();
-            const std::vector<double> rho = move_cells(d, rho_mine, ld);
-            moved = make_ray_grid(box, n, periodic, [&](int i, int j, int k) {
-                return rho[(static_cast<size_t>(k - box.lo[2]) * bs[1] + (j - box.lo[1])) * bs[0] + (i - box.lo[0])];
-            });
-        }
-        RayGrid& grid = own_slabs ? moved : field_grid;
-        // τ on the pass's slabs (no ghosts: its data are its cells, x fastest), reused by every light.
-        Field<double> piece = own_slabs ? Field<double>(ld.local(), 0, 1, 0.0) : Field<double>();
-        for (const size_t l : sd.members) {
-            Field<double>& tau = tau_rho[l];
-            double busy = 0.0;
-            if (own_slabs) {
-                exact_tau_chain(ld, grid, m.grid.h, lights[l], piece, &busy);
-                const std::vector<double> mine = move_cells(ld, {piece.data(), piece.size()}, d);
-                const Box& own = d.local();
-                auto row = mine.begin();
-                for (int k = own.lo[2]; k < own.hi[2]; ++k)
-                    for (int j = own.lo[1]; j < own.hi[1]; ++j, row += own.size(0))
-                        std::copy_n(row, own.size(0), &tau(own.lo[0], j, k));
-            } else {
-                exact_tau_chain(d, grid, m.grid.h, lights[l], tau, &busy);
-            }
-            busy_total += busy;
-            exchange_halo(tau, d);
-            progress.update(++done);
-        }
+    for (size_t l = 0; l < lights.size(); ++l) {
+        double busy = 0.0;
+        exact_tau_chain(d, grid, m.grid.h, lights[l], tau_rho[l], &busy);
+        busy_total += busy;
+        exchange_halo(tau_rho[l], d);
+        progress.update(static_cast<double>(l + 1));
     }
-    // The chain's balance: the busiest rank's tracing against the mean over the ranks.
     double busy[2] = {busy_total, busy_total};
     MPI_Allreduce(MPI_IN_PLACE, &busy[0], 1, MPI_DOUBLE, MPI_MAX, d.comm());
     MPI_Allreduce(MPI_IN_PLACE, &busy[1], 1, MPI_DOUBLE, MPI_SUM, d.comm());
     return {{"terms", lights.size()}, {"method", "exact (slab chain)"}, {"replicated_memory_gb", 0.0},
-            {"slabs", slabs}, {"trace_seconds_max", busy[0]}, {"trace_seconds_mean", busy[1] / d.size()}};
+            {"z_cuts", d.cuts(2)}, {"trace_seconds_max", busy[0]}, {"trace_seconds_mean", busy[1] / d.size()}};
 }
 
 // Long characteristics: every owned cell traces its own ray. Slabs along z: pipelined down the
@@ -188,23 +116,30 @@ LightTransport exact_light_transport(const Decomposition& d, const Medium& m,
     } else {
         const Int3 n = d.global().hi;
         const std::array<bool, 3> periodic{d.periodic(0), d.periodic(1), d.periodic(2)};
-        // The whole domain's cells (16 bytes per cell once the gathered copy is released).
+        // The whole domain's cells (24 bytes per cell once the gathered copy is released).
         RayGrid grid = [&] {
             const std::vector<double> rho = allgather_global(m.rho, d);
             return make_ray_grid(d.global(), n, periodic, [&](int i, int j, int k) {
                 return rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i];
             });
         }();
+        std::vector<RaySegment> segments;
         for (size_t l = 0; l < lights.size(); ++l) {
             const Vec3 b = -normalized(lights[l].w);
             Field<double>& tau = lt.tau_rho[l];
-            integrate_rays_along(
-                grid, d.local(), b, [](int i, int j, int k) { return std::array<double, 3>{i + 0.5, j + 0.5, k + 0.5}; },
-                [&](int i, int j, int k, std::int64_t, double integral) { tau(i, j, k) = integral * m.grid.h; });
+            const Box& own = d.local();
+            std::vector<double> layer(static_cast<size_t>(own.size(0)) * own.size(1));
+            for (int k = own.lo[2]; k < own.hi[2]; ++k) {
+                integrate_layer(grid, own, b, k, false, 0.0, segments, layer.data());
+                auto value = layer.begin();
+                for (int j = own.lo[1]; j < own.hi[1]; ++j)
+                    for (int i = own.lo[0]; i < own.hi[0]; ++i) tau(i, j, k) = *value++ * m.grid.h;
+            }
             exchange_halo(tau, d);
             progress.update(static_cast<double>(l + 1));
         }
-        const double grid_bytes = static_cast<double>(grid.voxels.voxel.size()) * sizeof(Voxel);
+        const double grid_bytes = static_cast<double>(grid.voxels.voxel.size()) * sizeof(Voxel) +
+                                  static_cast<double>(grid.rho.size()) * sizeof(double);
         report.values()["light"] = {{"terms", lights.size()}, {"method", "exact (replicated)"},
                                     {"replicated_memory_gb", 1e-9 * grid_bytes}};
     }

@@ -91,15 +91,13 @@ Box Decomposition::box_of(int r) const {
     const Int3 c = coords_of(r);
     Box b;
     for (int d = 0; d < 3; ++d) {
-        const std::vector<int>& cut = cuts_[static_cast<size_t>(d)];
-        b.lo[d] = cut.empty() ? split_lo(global_.hi[d], dims_[d], c[d]) : cut[static_cast<size_t>(c[d])];
-        b.hi[d] = cut.empty() ? split_lo(global_.hi[d], dims_[d], c[d] + 1) : cut[static_cast<size_t>(c[d]) + 1];
+        b.lo[d] = split_lo(global_.hi[d], dims_[d], c[d]);
+        b.hi[d] = split_lo(global_.hi[d], dims_[d], c[d] + 1);
     }
     return b;
 }
 
 std::vector<int> Decomposition::cuts(int axis) const {
-    if (!cuts_[static_cast<size_t>(axis)].empty()) return cuts_[static_cast<size_t>(axis)];
     std::vector<int> out;
     for (int p = 0; p <= dims_[axis]; ++p) out.push_back(split_lo(global_.hi[axis], dims_[axis], p));
     return out;
@@ -110,21 +108,6 @@ int Decomposition::thinnest(int axis) const {
     int thin = global_.hi[axis] - global_.lo[axis];
     for (size_t p = 0; p + 1 < c.size(); ++p) thin = std::min(thin, c[p + 1] - c[p]);
     return thin;
-}
-
-Decomposition Decomposition::with_cuts(int axis, std::vector<int> cuts) const {
-    const auto a = static_cast<size_t>(axis);
-    bool ok = axis >= 0 && axis < 3 && cuts.size() == static_cast<size_t>(dims_[a]) + 1 &&
-              cuts.front() == global_.lo[a] && cuts.back() == global_.hi[a];
-    for (size_t p = 0; ok && p + 1 < cuts.size(); ++p) ok = cuts[p] < cuts[p + 1];
-    if (!ok)
-        throw Error(fmt::format("cuts along axis {} must be {} strictly rising values from {} to {}", axis,
-                                axis >= 0 && axis < 3 ? dims_[a] + 1 : 0, axis >= 0 && axis < 3 ? global_.lo[a] : 0,
-                                axis >= 0 && axis < 3 ? global_.hi[a] : 0));
-    Decomposition out = *this;
-    out.cuts_[a] = std::move(cuts);
-    out.local_ = out.box_of(rank_);
-    return out;
 }
 
 int Decomposition::neighbor(int axis, int dir) const {

@@ -52,12 +52,6 @@ public:
 
     std::string describe() const;  // e.g. "2 ranks as 1x1x2 (slabs along z)"
 
-    // The same ranks, communicator and process grid with the cells along `axis` split at
-    // `cuts` instead of evenly: part p (process coordinate p) gets [cuts[p], cuts[p + 1]).
-    // cuts has dims()[axis] + 1 entries, rising strictly from the domain's low to its high
-    // face; throws Error otherwise. No communication (used for the exact light pass's
-    // work-balanced slabs, solvers/light/light_slabs.h).
-    Decomposition with_cuts(int axis, std::vector<int> cuts) const;
     // Where the cells along `axis` are split: dims()[axis] + 1 values from low to high face.
     std::vector<int> cuts(int axis) const;
 
@@ -77,7 +71,6 @@ private:
     Box global_{}, local_{};
     Int3 dims_{1, 1, 1}, coords_{0, 0, 0};
     std::array<bool, 3> periodic_{false, false, false};
-    std::array<std::vector<int>, 3> cuts_;  // per axis: empty for the even split, else as cuts()
 };
 
 }  // namespace nimbus

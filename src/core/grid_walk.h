@@ -1,5 +1,6 @@
 // Exact traversal of a piecewise-constant grid (3-D DDA): the Monte Carlo paths
-// (solvers/montecarlo) and the exact light pass's rays (solvers/light/exact_chain.h). Lengths
+// (solvers/montecarlo) and the reference rays of the exact light pass's tests
+// (solvers/light/exact_chain.h, ray_integral). Lengths
 // are in cell edges (h = 1), extinction kappa in 1/cell (kappa_cells = rho sigma_t h). Between
 // calls a path state is a cell plus the position inside it as fractions in [0, 1]^3, so
 // rounding never accumulates from one flight to the next (each call restarts the DDA from the
@@ -127,124 +128,15 @@ inline std::array<int, 3> cell_of(const GridView& g, std::int64_t idx) {
 // on_segment(cell_index, length) is called for every piece of path inside one cell, with
 // the length in cells, for cells with kappa > 0; the sum of kappa * length over the calls
 // equals the optical depth travelled (Beer-Lambert along a piecewise-constant medium).
-// on_step(cell_index), if given, is called for every voxel the walk reads (each unit step's
-// cell, including the one an empty-space jump starts from): the walk's work, counted (the
-// exact light pass balances its slabs by it, solvers/light/light_slabs.h). The default does
-// nothing and compiles away.
-struct NoStepHook {
-    void operator()(std::int64_t) const {}
-};
 
 namespace detail {
 
-// What a walk needs of its direction d: per axis the step in cells and in the padded index,
-// |d_a|, and 1/|d_a| (IEEE: +inf for a component of 0).
-struct WalkDirection {
-    int step[3];
-    std::int64_t dstep[3], stride[3];
-    double adir[3], inv[3];
-};
-
-[[gnu::always_inline]] inline WalkDirection walk_direction(const GridView& g, const Vec3& d) {
-    WalkDirection w;
-    const double dir[3] = {d.x, d.y, d.z};
-    const std::int64_t sy = g.n[0] + 2, sz = sy * (g.n[1] + 2);
-    w.stride[0] = 1, w.stride[1] = sy, w.stride[2] = sz;
-    for (int a = 0; a < 3; ++a) {
-        w.step[a] = dir[a] >= 0 ? 1 : -1;
-        w.dstep[a] = dir[a] >= 0 ? w.stride[a] : -w.stride[a];
-        w.adir[a] = std::abs(dir[a]);
-        w.inv[a] = 1.0 / w.adir[a];
-    }
-    return w;
-}
-
-// Where a walk is: its cell, the distances along the ray to the next face per axis (tx, ty,
-// tz: scalars, never an array indexed by a variable axis, which put them through memory, and
-// reading two back as one vector after a jump stalled on store forwarding: ~15% of the exact
-// light pass's samples), the distance travelled and the axis of the last step.
-struct WalkCursor {
-    std::int64_t idx = 0;
-    double tx = 0, ty = 0, tz = 0, t = 0;
-    int last = 0;
-};
-
-[[gnu::always_inline]] inline WalkCursor walk_cursor(const WalkDirection& w, const PathState& s) {
-    constexpr double inf = std::numeric_limits<double>::infinity();
-    auto first_face = [&](int a) {
-        return w.inv[a] == inf ? inf : (w.step[a] > 0 ? 1.0 - s.frac[a] : s.frac[a]) * w.inv[a];
-    };
-    return {s.idx, first_face(0), first_face(1), first_face(2), 0.0, 0};
-}
-
-// The face the ray leaves the cursor's cell through: its axis, and t_exit, the distance to it.
-// argmin of the face distances, ties to the higher axis. (Bitwise selects instead of the
-// compare-and-jump the compiler emits were 20% slower on the default cloud: the jumps predict
-// well enough, and the selects lengthen the step's dependency chain.)
-[[gnu::always_inline]] inline int exit_axis(const WalkCursor& c, double& t_exit) {
-    const bool y_le_x = !(c.tx < c.ty);
-    const double m01 = y_le_x ? c.ty : c.tx;
-    const bool z_le = !(m01 < c.tz);
-    t_exit = z_le ? c.tz : m01;
-    return z_le ? 2 : (y_le_x ? 1 : 0);
-}
-
-// Into the next cell across the face on `axis` at t_exit.
-[[gnu::always_inline]] inline void unit_step(const WalkDirection& w, WalkCursor& c, int axis, double t_exit) {
-    c.t = t_exit;
-    const double t_after = t_exit + w.inv[axis];
-    c.tx = axis == 0 ? t_after : c.tx;
-    c.ty = axis == 1 ? t_after : c.ty;
-    c.tz = axis == 2 ? t_after : c.tz;
-    c.idx += w.dstep[axis];
-    c.last = axis;
-}
-
-// Across the empty cube of half-width e = skip - 1 around the cursor's cell in one step, in
-// t: the cube's exit face on axis a is e cells beyond t_next[a]. The path leaves it through the
-// nearest (axis `exit`, at t_exit) into the cell `skip` cells on; on the other axes it crosses
-// every face up to t_exit (at most e, the cube's own). The cube lies inside the grid, so only
-// the exit axis can reach the ghost layer, which the unit steps then handle as any other step
-// onto it.
-[[gnu::always_inline]] inline void jump(const WalkDirection& w, WalkCursor& c, std::uint32_t skip) {
-    const int e = static_cast<int>(skip) - 1;
-    const double cx = c.tx + e * w.inv[0], cy = c.ty + e * w.inv[1], cz = c.tz + e * w.inv[2];  // inf stays inf
-    const int exit = cx < cy ? (cx < cz ? 0 : 2) : (cy < cz ? 1 : 2);
-    const double t_exit = exit == 0 ? cx : (exit == 1 ? cy : cz);
-    auto cross = [&](int a, double& tn) {
-        if (a == exit || !(tn <= t_exit)) return;
-        const int crossed = std::min(floor_to_int((t_exit - tn) * w.adir[a]) + 1, e);
-        tn += crossed * w.inv[a];
-        c.idx += crossed * w.dstep[a];
-    };
-    cross(0, c.tx);
-    cross(1, c.ty);
-    cross(2, c.tz);
-    c.t = t_exit;
-    const double t_after = t_exit + w.inv[exit];
-    c.tx = exit == 0 ? t_after : c.tx;
-    c.ty = exit == 1 ? t_after : c.ty;
-    c.tz = exit == 2 ? t_after : c.tz;
-    c.idx += (e + 1) * w.dstep[exit];
-    c.last = exit;
-}
-
-// The last unit step went onto the ghost layer (axis c.last): wraps a periodic axis (true: the
-// walk goes on), or returns false (the ray left the walked box).
-[[gnu::always_inline]] inline bool wrap(const GridView& g, const WalkDirection& w, WalkCursor& c) {
-    const int a = c.last;
-    if (!g.periodic[a]) return false;
-    c.idx -= w.step[a] * g.n[a] * w.stride[a];  // the same row's cell on the far side
-    return true;
-}
-
 // The walk; kExitState: on leaving the walked box, s is set and the domain face found (else it
-// just returns 0: walk_through). It keeps its own copy of the unit step and the jump above, on
-// local scalars: built from the helpers (a cursor struct, the direction struct) the Monte Carlo
-// ran 8% slower on the default cloud (4.19 against 4.66 × 10⁶ collisions/s, 5 alternating runs).
-template <bool kExitState, class OnSegment, class OnStep>
-[[gnu::always_inline]] inline int walk(const GridView& g, PathState& s, double tau, OnSegment& on_segment,
-                                       OnStep& on_step) {
+// just returns 0: walk_through). The unit step and the jump work on local scalars: built from
+// helpers (a cursor struct, a direction struct) the Monte Carlo ran 8% slower on the default
+// cloud (4.19 against 4.66 × 10⁶ collisions/s, 5 alternating runs).
+template <bool kExitState, class OnSegment>
+[[gnu::always_inline]] inline int walk(const GridView& g, PathState& s, double tau, OnSegment& on_segment) {
     constexpr double inf = std::numeric_limits<double>::infinity();
     const double dir[3] = {s.d.x, s.d.y, s.d.z};
     const double adir[3] = {std::abs(dir[0]), std::abs(dir[1]), std::abs(dir[2])};
@@ -283,7 +175,6 @@ template <bool kExitState, class OnSegment, class OnStep>
         Voxel v;
         for (;;) {
             v = g.voxel[idx];
-            on_step(idx);
             if (v.skip > 1) [[unlikely]] break;
             // argmin of t_next; ties go to the higher axis. (Bitwise selects instead of the
             // compare-and-jump the compiler emits were 20% slower on the default cloud: the
@@ -368,60 +259,21 @@ template <bool kExitState, class OnSegment, class OnStep>
 }
 
 
-// One voxel of a walk_through: a unit step (tallied if the cell is not empty), an empty-space
-// jump, a periodic wrap, or the exit (returns false).
-template <class OnSegment>
-[[gnu::always_inline]] inline bool through_one(const GridView& g, const WalkDirection& w, WalkCursor& c,
-                                               OnSegment& on_segment) {
-    const Voxel v = g.voxel[c.idx];
-    if (v.skip <= 1) [[likely]] {
-        double t_exit;
-        const int axis = exit_axis(c, t_exit);
-        if (v.kappa > 0.0f) on_segment(c.idx, t_exit - c.t);
-        unit_step(w, c, axis, t_exit);
-        return true;
-    }
-    if (v.skip == outside_skip) return wrap(g, w, c);
-    jump(w, c, v.skip);
-    return true;
-}
-
 }  // namespace detail
 
-template <class OnSegment, class OnStep = NoStepHook>
-[[gnu::always_inline]] inline int walk_optical_depth(const GridView& g, PathState& s, double tau, OnSegment&& on_segment,
-                                                     OnStep&& on_step = OnStep{}) {
-    return detail::walk<true>(g, s, tau, on_segment, on_step);
+template <class OnSegment>
+[[gnu::always_inline]] inline int walk_optical_depth(const GridView& g, PathState& s, double tau, OnSegment&& on_segment) {
+    return detail::walk<true>(g, s, tau, on_segment);
 }
 
 // The walk of a ray that runs until it leaves the walked box (no optical depth to use up),
-// when nothing about where it left is needed: the exact light pass's ray integrals. Calls
-// on_segment and on_step as walk_optical_depth does; leaves s unspecified. Skips what a
-// path's exit costs (the exit point, the cell's coordinates: two 64-bit divisions, the domain
-// face), which was a large part of a short ray piece.
-template <class OnSegment, class OnStep = NoStepHook>
-[[gnu::always_inline]] inline void walk_through(const GridView& g, PathState& s, OnSegment&& on_segment,
-                                                OnStep&& on_step = OnStep{}) {
-    detail::walk<false>(g, s, std::numeric_limits<double>::infinity(), on_segment, on_step);
-}
-
-// Two rays of one direction (a.d == b.d) walked through g in lockstep, one voxel each in turn,
-// each until it leaves the walked box: on_segment_a / on_segment_b as walk_through's. A walk is
-// a chain of dependent steps (~6 cycles a voxel read); two independent chains in one loop let
-// the core overlap them: the exact light pass 25-30% faster (README). The sums per ray are the
-// ones walk_through gives, bit for bit (the same steps in the same order).
-template <class OnSegmentA, class OnSegmentB>
-inline void walk_through_pair(const GridView& g, const PathState& a, const PathState& b, OnSegmentA&& on_segment_a,
-                              OnSegmentB&& on_segment_b) {
-    const detail::WalkDirection w = detail::walk_direction(g, a.d);
-    detail::WalkCursor ca = detail::walk_cursor(w, a), cb = detail::walk_cursor(w, b);
-    bool more_a = true, more_b = true;
-    while (more_a && more_b) {
-        more_a = detail::through_one(g, w, ca, on_segment_a);
-        more_b = detail::through_one(g, w, cb, on_segment_b);
-    }
-    while (more_a) more_a = detail::through_one(g, w, ca, on_segment_a);
-    while (more_b) more_b = detail::through_one(g, w, cb, on_segment_b);
+// when nothing about where it left is needed: one ray's integral (exact_chain.h's
+// ray_integral, the reference of the light pass's layer integrals). Calls on_segment as
+// walk_optical_depth does; leaves s unspecified. Skips what a path's exit costs (the exit
+// point, the cell's coordinates: two 64-bit divisions, the domain face).
+template <class OnSegment>
+[[gnu::always_inline]] inline void walk_through(const GridView& g, PathState& s, OnSegment&& on_segment) {
+    detail::walk<false>(g, s, std::numeric_limits<double>::infinity(), on_segment);
 }
 
 }  // namespace nimbus

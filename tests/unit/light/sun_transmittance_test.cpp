@@ -732,46 +732,12 @@ TEST(ExactLight, MatchesTheSweepForAxisAlignedLightAndWorksOnAnyProcessGrid) {
 namespace nimbus {
 namespace {
 
-// The exact pass visits cells in columns along the light (for_each_cell_along): every cell of
-// the box exactly once, with its x-fastest index; sheared for oblique light, x-fastest for
-// horizontal light and for shears beyond its limit.
-TEST(ExactLight, CellsAlongTheLightAreEachVisitedOnce) {
-    const Box box{{2, -1, 5}, {9, 4, 11}};  // 7 x 5 x 6
-    const Int3 m = box.shape();
-    struct Case {
-        Vec3 b;
-        bool sheared;
-    };
-    const Case cases[] = {{normalized(Vec3{0.3, 0.2, 1.0}), true},    {normalized(Vec3{-0.8, 0.5, 0.3}), true},
-                          {normalized(Vec3{0.0, 0.0, -1.0}), true},   {normalized(Vec3{0.1, -2.5, 0.05}), false},
-                          {normalized(Vec3{1.0, 0.4, 0.0}), false}};
-    for (const Case& c : cases)
-        for (const int tile : {1, 3, 8}) {
-            std::vector<int> seen(static_cast<size_t>(box.cells()), 0);
-            std::vector<std::int64_t> order;
-            for_each_cell_along(box, c.b, [&](int i, int j, int k, std::int64_t p) {
-                ASSERT_TRUE(box.contains(i, j, k));
-                ASSERT_EQ(p, ((k - box.lo[2]) * m[1] + (j - box.lo[1])) * m[0] + (i - box.lo[0]));
-                ++seen[static_cast<size_t>(p)];
-                order.push_back(p);
-            }, tile);
-            EXPECT_TRUE(std::all_of(seen.begin(), seen.end(), [](int v) { return v == 1; }))
-                << c.b.x << "," << c.b.y << "," << c.b.z << " tile " << tile;
-            // With one-cell columns a sheared order goes up a column before it moves across (a
-            // tile as wide as the box would give x-fastest order for a vertical light).
-            if (tile == 1 || !c.sheared) {
-                EXPECT_EQ(std::is_sorted(order.begin(), order.end()), !c.sheared)
-                    << c.b.x << "," << c.b.y << "," << c.b.z << " tile " << tile;
-            }
-        }
-}
-
 TEST(ExactLight, SlabChainEqualsBruteForceInAHeterogeneousMedium) {
     // On slabs the exact method integrates each ray piecewise on the ranks it crosses; the sum
     // must equal one ray march through the whole grid for lights from above, below and low.
-    // Dense: every cell non-empty. Sparse: a ball and scattered cells in empty space, so the
-    // walk's empty-space jumps (grid_walk.h) cross slab faces and periodic wraps; also on an x
-    // split, where each rank walks a replicated grid.
+    // Dense: every cell non-empty. Sparse: a ball and scattered cells in empty space, so that
+    // rows of the layer integrals (exact_chain.h) hold density in parts only, across slab faces
+    // and periodic wraps; also on an x split, where each rank integrates a replicated grid.
     const Int3 n{13, 11, 17};
     auto dense = [](int i, int j, int k) { return 0.2 + std::fmod(0.37 * i + 1.3 * j * j + 0.71 * k * k, 2.0); };
     auto sparse = [&](int i, int j, int k) {
@@ -794,13 +760,6 @@ TEST(ExactLight, SlabChainEqualsBruteForceInAHeterogeneousMedium) {
                                                    {"low", normalized(Vec3{0.9, -0.4, -0.15}), {1.0}}};
         Report r;
         const auto lt = compute_light_transport(s.d, s.m, lights, r, {}, LightSpec::Method::exact);
-        if (size > 1 && medium == 0) {
-            // The dense medium is traced on balanced slabs of its own for both sides (light_slabs.h),
-            // so the density and each τ really move between the splits here.
-            const auto& slabs = r.values()["light"]["slabs"];
-            ASSERT_EQ(slabs.size(), 2u);
-            for (const auto& sl : slabs) EXPECT_NE(sl["z_cuts"], sl["field_z_cuts"]) << sl.dump();
-        }
         for (size_t l = 0; l < lights.size(); ++l)
             for_each_cell(s.d.local(), [&](int i, int j, int k) {
                 const double want = exact_tau_rho(full, n, 0.7, lights[l].w, i, j, k, periodic);
@@ -816,38 +775,68 @@ TEST(ExactLight, SlabChainEqualsBruteForceInAHeterogeneousMedium) {
 namespace nimbus {
 namespace {
 
-// Two rays walked in lockstep give exactly what each gives alone: through empty-space jumps,
-// periodic wraps and exits, from cell centres and from points on faces, and when one of them
-// starts outside the grid.
-TEST(ExactLight, RaysWalkedInPairsEqualRaysWalkedAlone) {
+// The layer integrals (integrate_layer: one walk per layer, its cells shifted to every cell of
+// the layer) equal one walk per cell (ray_integral): from cell centres and from a slab's entry
+// face (downstream pieces), on a grid that is the whole domain or a z slab of it, for a box of
+// cells that is a part of the domain, through empty space, periodic wraps and exits through
+// the sides, for light from above, below, low, horizontal and vertical. The sums differ only by
+// the lengths' round-off (one walk's lengths against each ray's, whose empty-space jumps
+// recompute the position). Each layer check fails with a cell shifted by one, or a row's
+// density range cut by one cell.
+TEST(ExactLight, LayerIntegralsEqualOneWalkPerCell) {
     const Int3 n{13, 11, 9};
     auto rho_of = [](int i, int j, int k) {
         const double v = 0.2 + std::fmod(0.37 * i + 1.3 * j * j + 0.71 * k * k, 2.0);
         const bool ball = (i - 4) * (i - 4) + (j - 6) * (j - 6) + (k - 5) * (k - 5) < 10;
         return ball || v > 2.0 ? v : 0.0;
     };
-    for (const std::array<bool, 3> periodic : {std::array<bool, 3>{false, false, false}, std::array<bool, 3>{true, true, false}}) {
-        RayGrid g = make_ray_grid(Box{{0, 0, 0}, n}, n, periodic, rho_of);
-        for (const Vec3& b : {normalized(Vec3{0.55, 0.35, 0.76}), normalized(Vec3{-0.3, 0.6, -0.7}),
-                              normalized(Vec3{0.9, -0.4, 0.15}), Vec3{0, 0, 1}}) {
-            std::vector<std::array<double, 3>> starts;
-            for_each_cell(Box{{0, 0, 0}, n}, [&](int i, int j, int k) {
-                if ((i + 2 * j + 3 * k) % 5 == 0) starts.push_back({i + 0.5, j + 0.5, k + 0.5});
-            });
-            starts.push_back({4.0, 6.0, 5.0});     // on cell faces
-            starts.push_back({-3.0, 2.5, 4.5});    // outside x: no ray unless x is periodic
-            ASSERT_GT(starts.size(), 100u);
-            int nonzero = 0;
-            for (size_t q = 0; q + 1 < starts.size(); ++q) {
-                double a, c;
-                ray_integral_pair(g, b, starts[q], starts[q + 1], a, c);
-                EXPECT_EQ(a, ray_integral(g, b, starts[q])) << q;
-                EXPECT_EQ(c, ray_integral(g, b, starts[q + 1])) << q;
-                nonzero += a > 0;
+    struct GridCase {
+        Box grid, cells;
+        bool downstream;
+    };
+    // The whole domain; a slab z 3..6 with its own cells; the same slab crossed by the rays of
+    // the cells below it (from its entry face z = 3) and above it (z = 6), x/y parts of them.
+    const GridCase grids[] = {{Box{{0, 0, 0}, n}, Box{{0, 0, 0}, n}, false},
+                              {Box{{0, 0, 3}, {13, 11, 6}}, Box{{0, 0, 3}, {13, 11, 6}}, false},
+                              {Box{{0, 0, 3}, {13, 11, 6}}, Box{{2, 1, 0}, {11, 9, 3}}, true},
+                              {Box{{0, 0, 3}, {13, 11, 6}}, Box{{0, 3, 6}, {13, 8, 9}}, true},
+                              {Box{{0, 0, 0}, n}, Box{{5, 0, 2}, {9, 11, 7}}, false}};
+    int checked = 0, nonzero = 0;
+    for (const std::array<bool, 3> periodic : {std::array<bool, 3>{false, false, false}, std::array<bool, 3>{true, true, false},
+                                               std::array<bool, 3>{true, false, false}})
+        for (const GridCase& gc : grids) {
+            RayGrid g = make_ray_grid(gc.grid, n, periodic, rho_of);
+            add_voxels(g);
+            for (const Vec3& b : {normalized(Vec3{0.55, 0.35, 0.76}), normalized(Vec3{-0.3, 0.6, -0.7}),
+                                  normalized(Vec3{0.9, -0.4, 0.15}), normalized(Vec3{-2.5, 1.7, 0.4}), Vec3{0, 0, 1},
+                                  Vec3{0, 0, -1}, normalized(Vec3{1.0, 0.3, 0.0}), normalized(Vec3{-0.2, -1.0, 0.0})}) {
+                // Downstream pieces enter through the face the rays reach: the grid's low z face
+                // for rays going up from below it, its high face for rays going down from above.
+                const bool below = gc.cells.hi[2] <= gc.grid.lo[2];
+                if (gc.downstream && (b.z == 0 || (b.z > 0) != below)) continue;
+                const double z_entry = below ? gc.grid.lo[2] : gc.grid.hi[2];
+                // A horizontal light must leave through a non-periodic side.
+                if (b.z == 0 && (periodic[0] || b.x == 0) && (periodic[1] || b.y == 0)) continue;
+                std::vector<RaySegment> segments;
+                std::vector<double> layer(static_cast<size_t>(gc.cells.size(0) * gc.cells.size(1)));
+                for (int k = gc.cells.lo[2]; k < gc.cells.hi[2]; ++k) {
+                    integrate_layer(g, gc.cells, b, k, gc.downstream, z_entry, segments, layer.data());
+                    size_t p = 0;
+                    for (int j = gc.cells.lo[1]; j < gc.cells.hi[1]; ++j)
+                        for (int i = gc.cells.lo[0]; i < gc.cells.hi[0]; ++i, ++p) {
+                            const double want = ray_integral(g, b, piece_start(b, i, j, k, gc.downstream, z_entry));
+                            ASSERT_NEAR(layer[p], want, 1e-12 * (1.0 + want))
+                                << "grid z " << gc.grid.lo[2] << "-" << gc.grid.hi[2] << " cells " << i << "," << j << ","
+                                << k << " b " << b.x << "," << b.y << "," << b.z << " periodic " << periodic[0]
+                                << periodic[1];
+                            ++checked;
+                            nonzero += want > 0;
+                        }
+                }
             }
-            EXPECT_GT(nonzero, 10);
         }
-    }
+    EXPECT_GT(checked, 20000);
+    EXPECT_GT(nonzero, checked / 2);
 }
 
 }  // namespace
