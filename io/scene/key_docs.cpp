@@ -96,8 +96,9 @@ const std::vector<KeyDoc>& scene_key_docs() {
 
         {"light", "The light pass: the optical depth from every cell to each sun or sky beam."},
         {"light.method",
+         "exact: a ray from every cell centre, O(cells x n), a layer's rays summed at once | "
          "sweep: short characteristics, O(cells), slabs along z only, interpolation error under "
-         "an oblique light | exact: a ray from every cell centre"},
+         "an oblique light"},
 
         {"camera", "The pinhole camera of the image."},
         {"camera.position",
