@@ -17,7 +17,8 @@
 // for each row of the layer and each cell of that ray, a run of the row's sums takes len times
 // a run of a density row (integrate_layer), contiguous in x, without a walk's dependent steps.
 // Runs are clipped to the x range of each density row that holds density, so empty space costs
-// a test per row and ray cell.
+// a test per row and ray cell. 7-11x faster than a grid walk per ray (README, "Layer
+// integrals"), which the pass used until the forty-second session.
 #pragma once
 
 #include <algorithm>
@@ -28,6 +29,7 @@
 #include <vector>
 
 #include "src/core/decomposition.h"
+#include "src/core/error.h"
 #include "src/core/field.h"
 #include "src/core/grid_walk.h"
 #include "src/core/vec3.h"
@@ -108,6 +110,8 @@ void exact_tau_chain(const Decomposition& d, RayGrid& slab, double h, const Dire
 template <class RhoOf>
 RayGrid make_ray_grid(const Box& box, const Int3& n, const std::array<bool, 3>& domain_periodic, RhoOf&& rho_of) {
     const Int3 m = box.shape();
+    if (box.lo[0] != 0 || box.hi[0] != n[0] || box.lo[1] != 0 || box.hi[1] != n[1])
+        throw Error("make_ray_grid: the box must span the domain's x and y");
     RayGrid g;
     g.periodic = {domain_periodic[0], domain_periodic[1], false};
     g.box = box;

@@ -262,7 +262,8 @@ template <bool kExitState, class OnSegment>
 }  // namespace detail
 
 template <class OnSegment>
-[[gnu::always_inline]] inline int walk_optical_depth(const GridView& g, PathState& s, double tau, OnSegment&& on_segment) {
+[[gnu::always_inline]] inline int walk_optical_depth(const GridView& g, PathState& s, double tau,
+                                                     OnSegment&& on_segment) {
     return detail::walk<true>(g, s, tau, on_segment);
 }
 

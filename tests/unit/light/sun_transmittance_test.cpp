@@ -802,8 +802,8 @@ TEST(ExactLight, LayerIntegralsEqualOneWalkPerCell) {
                               {Box{{0, 0, 3}, {13, 11, 6}}, Box{{0, 3, 6}, {13, 8, 9}}, true},
                               {Box{{0, 0, 0}, n}, Box{{5, 0, 2}, {9, 11, 7}}, false}};
     int checked = 0, nonzero = 0;
-    for (const std::array<bool, 3> periodic : {std::array<bool, 3>{false, false, false}, std::array<bool, 3>{true, true, false},
-                                               std::array<bool, 3>{true, false, false}})
+    using Periodic = std::array<bool, 3>;
+    for (const Periodic periodic : {Periodic{false, false, false}, Periodic{true, true, false}, Periodic{true, false, false}})
         for (const GridCase& gc : grids) {
             RayGrid g = make_ray_grid(gc.grid, n, periodic, rho_of);
             add_voxels(g);
@@ -826,9 +826,9 @@ TEST(ExactLight, LayerIntegralsEqualOneWalkPerCell) {
                         for (int i = gc.cells.lo[0]; i < gc.cells.hi[0]; ++i, ++p) {
                             const double want = ray_integral(g, b, piece_start(b, i, j, k, gc.downstream, z_entry));
                             ASSERT_NEAR(layer[p], want, 1e-12 * (1.0 + want))
-                                << "grid z " << gc.grid.lo[2] << "-" << gc.grid.hi[2] << " cells " << i << "," << j << ","
-                                << k << " b " << b.x << "," << b.y << "," << b.z << " periodic " << periodic[0]
-                                << periodic[1];
+                                << "grid z " << gc.grid.lo[2] << "-" << gc.grid.hi[2] << " cell " << i << ","
+                                << j << "," << k << " b " << b.x << "," << b.y << "," << b.z << " periodic "
+                                << periodic[0] << periodic[1];
                             ++checked;
                             nonzero += want > 0;
                         }
