@@ -123,20 +123,25 @@ void integrate_layer(const RayGrid& g, const Box& cells, const Vec3& b, int k, b
     // The ray of translate (0, 0): every other one is it moved by (i, j).
     ray_cells(g, cells, b, piece_start(b, 0, 0, k, downstream, z_entry), segments);
     const int n0 = g.domain[0], n1 = g.domain[1];
+    // Periodic offsets wrapped once per ray cell, into [0, n): a row's target is then at most one
+    // period beyond (no division in the loops).
+    for (RaySegment& s : segments) {
+        if (g.periodic[0]) s.cell[0] = wrap(s.cell[0], n0);
+        if (g.periodic[1]) s.cell[1] = wrap(s.cell[1], n1);
+    }
     for (int j = cells.lo[1]; j < cells.hi[1]; ++j) {
         double* acc = out + static_cast<std::ptrdiff_t>(j - cells.lo[1]) * nx;
         for (const RaySegment& s : segments) {
             int jj = s.cell[1] + j;
-            if (g.periodic[1]) jj = wrap(jj, n1);
+            if (g.periodic[1]) jj -= jj >= n1 ? n1 : 0;
             else if (jj < 0 || jj >= n1) continue;
             const size_t row = static_cast<size_t>(s.cell[2] - g.box.lo[2]) * gy + (jj - g.box.lo[1]);
             const int lo = g.row_lo[row], hi = g.row_hi[row];
             if (lo >= hi) continue;
             const double* src = g.rho.data() + row * gx - g.box.lo[0];  // src[x] for global x
             if (g.periodic[0]) {  // i + shift in [0, 2 n0): below n0 directly, above wrapped
-                const int shift = wrap(s.cell[0], n0);
-                add_run(acc, src, cells.lo[0], cells.hi[0], shift, lo, hi, s.len);
-                add_run(acc, src, cells.lo[0], cells.hi[0], shift - n0, lo, hi, s.len);
+                add_run(acc, src, cells.lo[0], cells.hi[0], s.cell[0], lo, hi, s.len);
+                add_run(acc, src, cells.lo[0], cells.hi[0], s.cell[0] - n0, lo, hi, s.len);
             } else {
                 add_run(acc, src, cells.lo[0], cells.hi[0], s.cell[0], lo, hi, s.len);
             }

@@ -88,7 +88,7 @@ void ray_cells(const RayGrid& g, const Box& cells, const Vec3& b, const std::arr
 // = ∫ rho ds (cell units) along the piece through g of the ray from each cell (i, j, k), which
 // starts where piece_start puts it (downstream, z_entry). Equal to ray_integral from that point
 // up to round-off (the same cells and the same sum order; lengths from one walk). segments:
-// scratch for ray_cells. out holds cells' nx x ny values.
+// scratch for ray_cells (left with its periodic offsets wrapped). out holds cells' nx x ny values.
 void integrate_layer(const RayGrid& g, const Box& cells, const Vec3& b, int k, bool downstream, double z_entry,
                      std::vector<RaySegment>& segments, double* out);
 
