@@ -116,7 +116,7 @@ LightTransport exact_light_transport(const Decomposition& d, const Medium& m,
     } else {
         const Int3 n = d.global().hi;
         const std::array<bool, 3> periodic{d.periodic(0), d.periodic(1), d.periodic(2)};
-        // The whole domain's cells (24 bytes per cell once the gathered copy is released).
+        // The whole domain's density (8 bytes per cell once the gathered copy is released).
         RayGrid grid = [&] {
             const std::vector<double> rho = allgather_global(m.rho, d);
             return make_ray_grid(d.global(), n, periodic, [&](int i, int j, int k) {
@@ -138,8 +138,8 @@ LightTransport exact_light_transport(const Decomposition& d, const Medium& m,
             exchange_halo(tau, d);
             progress.update(static_cast<double>(l + 1));
         }
-        const double grid_bytes = static_cast<double>(grid.voxels.voxel.size()) * sizeof(Voxel) +
-                                  static_cast<double>(grid.rho.size()) * sizeof(double);
+        const double grid_bytes = static_cast<double>(grid.rho.size()) * sizeof(double) +
+                                  static_cast<double>(grid.row_lo.size() + grid.row_hi.size()) * sizeof(int);
         report.values()["light"] = {{"terms", lights.size()}, {"method", "exact (replicated)"},
                                     {"replicated_memory_gb", 1e-9 * grid_bytes}};
     }
