@@ -79,8 +79,8 @@ struct LightSpec {
                 // down the chain (each rank integrates the pieces in its slab), other process
                 // grids replicate the density
     };
-    // exact since the forty-second session: its layer integrals cost 1.6-2x the sweep on the
-    // clouds (README, "Layer integrals"), which is 4% off on the default cloud.
+    // exact since the forty-second session: its layer integrals cost 1.4-2.4x the sweep on the
+    // clouds up to 128^3 (README, "Layer integrals"), which is 4% off on the default cloud.
     Method method = Method::exact;
 };
 
