@@ -64,9 +64,32 @@ double ray_integral(RayGrid& g, const Vec3& b, const std::array<double, 3>& pos)
     return sum;
 }
 
-void ray_cells(const RayGrid& g, const Box& cells, const Vec3& b, const std::array<double, 3>& pos,
+void ray_cells(const RayGrid& g, const Box& cells, const Vec3& b, const std::array<double, 3>& start,
                std::vector<RaySegment>& out) {
     out.clear();
+    // In double first: a downstream piece of a nearly horizontal ray starts dz |b_x / b_z| cells
+    // away, beyond int (w_z = -1e-10 on 2 ranks: floor_to_int overflowed, and the walk ran 2^31
+    // cells into memory until it failed). On a non-periodic x/y axis the cells where some
+    // translate is inside the domain are c in (-hi, n - lo) (past() below): a start beyond them
+    // that moves away, or not at all, has nothing to add; one far before them moves up to a cell
+    // before them (the cells on the way add nothing either). Periodic axes drop whole periods.
+    std::array<double, 3> pos = start;
+    double skip = 0.0;
+    for (int a = 0; a < 2; ++a) {
+        if (g.periodic[a]) continue;
+        const double lo = -cells.hi[a], hi = g.domain[a] - cells.lo[a];
+        if ((pos[a] >= hi && !(b[a] < 0)) || (pos[a] < lo + 1 && !(b[a] > 0))) return;
+        if (pos[a] < lo - 1) skip = std::max(skip, (lo - 1 - pos[a]) / b[a]);
+        if (pos[a] > hi + 1) skip = std::max(skip, (hi + 1 - pos[a]) / b[a]);
+    }
+    if (skip > 0.0) {
+        for (int a = 0; a < 3; ++a) pos[a] += skip * b[a];
+        for (int a = 0; a < 2; ++a)
+            if (!g.periodic[a] && (pos[a] >= g.domain[a] - cells.lo[a] + 2 || pos[a] < -cells.hi[a] - 1)) return;
+    }
+    for (int a = 0; a < 2; ++a)
+        if (g.periodic[a]) pos[a] -= g.domain[a] * std::floor(pos[a] / g.domain[a]);
+    if (!(pos[2] >= g.box.lo[2] - 1 && pos[2] <= g.box.hi[2] + 1)) return;  // never in g's z range
     std::array<int, 3> c{}, step{};
     std::array<double, 3> next{}, inv{};
     for (int a = 0; a < 3; ++a) {

@@ -12,8 +12,9 @@
 // The rays of one layer are translates of each other: the ray from cell (i, j, k) is the ray
 // from (0, 0, k) moved by (i, j) whole cells (a light's rays are parallel, and the pieces of
 // downstream rays enter a slab at points that differ by whole cells too), so they cross the
-// same cells, shifted by (i, j), for the same lengths. The pass walks one ray per layer (the
-// DDA of grid_walk.h, ray_cells) and sums len x rho over its cells for every translate at once:
+// same cells, shifted by (i, j), for the same lengths. The pass walks one ray per layer
+// (ray_cells: the incremental DDA of grid_walk.h, without its empty-space jumps) and sums
+// len x rho over its cells for every translate at once:
 // for each row of the layer and each cell of that ray, a run of the row's sums takes len times
 // a run of a density row (integrate_layer), contiguous in x, without a walk's dependent steps.
 // Runs are clipped to the x range of each density row that holds density, so empty space costs
@@ -79,15 +80,19 @@ struct RaySegment {
 // `cells` (i in [cells.lo[0], cells.hi[0]), j likewise) is still, or not yet, inside the domain:
 // the cells of the ray from pos + (i, j) are these plus (i, j), wrapped on periodic axes, and
 // outside the domain on a non-periodic one (density 0: the ray has left it for good). A point
-// on a cell face belongs to the cell the ray moves into (as in ray_integral). The incremental DDA of
-// grid_walk.h without its empty-space jumps. Pure; out is cleared first.
+// on a cell face belongs to the cell the ray moves into (as in ray_integral). The incremental
+// DDA of grid_walk.h without its empty-space jumps (ties to the lower axis). A start any
+// distance outside the domain is handled in double (out of int range, a start beyond the
+// translates' reach is no ray). Pure; out is cleared first.
 void ray_cells(const RayGrid& g, const Box& cells, const Vec3& b, const std::array<double, 3>& pos,
                std::vector<RaySegment>& out);
 
 // Layer k of `cells` (a box inside the domain's x/y ranges): out[(j - lo_j) * nx + (i - lo_i)]
 // = ∫ rho ds (cell units) along the piece through g of the ray from each cell (i, j, k), which
 // starts where piece_start puts it (downstream, z_entry). Equal to ray_integral from that point
-// up to round-off (the same cells and the same sum order; lengths from one walk). segments:
+// up to round-off: the same line integral, summed in the order the ray crosses the cells, with
+// the lengths of one walk (ray_integral skips empty cells, jumps through empty space and breaks
+// ties between faces toward the higher axis, which moves lengths by round-off). segments:
 // scratch for ray_cells (left with its periodic offsets wrapped). out holds cells' nx x ny values.
 void integrate_layer(const RayGrid& g, const Box& cells, const Vec3& b, int k, bool downstream, double z_entry,
                      std::vector<RaySegment>& segments, double* out);

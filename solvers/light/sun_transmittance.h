@@ -57,7 +57,7 @@ LightTransport compute_light_transport(const Decomposition& d, const Medium& m,
 // Exact ∫ rho ds from the centre of global cell (i, j, k) back to the domain boundary against w,
 // by a plain cell-by-cell 3-D DDA over a full density array rho_global [z][y][x] (periodic axes
 // wrap; the light must then not be parallel to them). O(n) per cell. The tests' brute-force
-// reference: the exact method itself walks with the shared grid walk (exact_chain.h).
+// reference: the exact method itself sums a layer's rays at once (exact_chain.h).
 double exact_tau_rho(const std::vector<double>& rho_global, const Int3& n, double h, const Vec3& w,
                      int i, int j, int k, std::array<bool, 3> periodic = {false, false, false});
 

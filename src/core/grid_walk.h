@@ -48,7 +48,7 @@ struct Voxel {
     float kappa = 0.0f;       // extinction, 1/cell
     std::uint32_t skip = 0;   // chessboard distance to the nearest non-empty cell (0 if non-empty)
     double tally = 0.0;       // the caller's per-cell double (Monte Carlo: w len of the current light;
-                              // the exact light pass: the density, solvers/light/exact_chain.h)
+                              // ray_integral of solvers/light/exact_chain.h: the density)
 };
 static_assert(sizeof(Voxel) == 16);
 
@@ -153,7 +153,7 @@ template <bool kExitState, class OnSegment>
     // Distance from the current point (t = 0) to the next face per axis: tx, ty, tz, scalars
     // throughout (kept in an array written by a variable axis, they went through memory, and
     // reading two of them back as one vector after a jump stalled on store forwarding: ~15% of
-    // the exact light pass's samples).
+    // the samples of the exact light pass when it walked each ray).
     auto first_face = [&](int a) {
         return inv[a] == inf ? inf : (step[a] > 0 ? 1.0 - s.frac[a] : s.frac[a]) * inv[a];
     };

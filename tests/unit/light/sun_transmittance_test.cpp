@@ -775,6 +775,26 @@ TEST(ExactLight, SlabChainEqualsBruteForceInAHeterogeneousMedium) {
 namespace nimbus {
 namespace {
 
+// A light a hair from horizontal that leaves through a side face: on slabs the piece of a
+// downstream ray starts where the ray would cross the slab's face, 1e10 cells away (beyond
+// int). It is no ray there (it left through the side); the layer integrals must say 0, not walk
+// 2^31 cells (they did: the run aborted with bad_alloc on 2 ranks, a review finding).
+TEST(ExactLight, NearlyHorizontalLightLeavingThroughASideOnSlabs) {
+    const Int3 n{4, 4, 8};
+    LitMedium s = make(MPI_COMM_WORLD, n, 1.0, [](int, int, int) { return 1.0; });
+    std::vector<double> full(static_cast<size_t>(n[0] * n[1] * n[2]), 1.0);
+    const std::vector<DirectionalLight> lights{{"x", normalized(Vec3{1.0, 0.0, -1e-10}), {1.0}},
+                                               {"xy", normalized(Vec3{1.0, 0.5, -1e-10}), {1.0}},
+                                               {"up", normalized(Vec3{-1.0, 0.3, 2e-9}), {1.0}}};
+    Report r;
+    const auto lt = compute_light_transport(s.d, s.m, lights, r, {}, LightSpec::Method::exact);
+    for (size_t l = 0; l < lights.size(); ++l)
+        for_each_cell(s.d.local(), [&](int i, int j, int k) {
+            const double want = exact_tau_rho(full, n, 1.0, lights[l].w, i, j, k);
+            ASSERT_NEAR(lt.tau_rho[l](i, j, k), want, 1e-10 * (1 + want)) << lights[l].name << " " << i << "," << j << "," << k;
+        });
+}
+
 // The layer integrals (integrate_layer: one walk per layer, its cells shifted to every cell of
 // the layer) equal one walk per cell (ray_integral): from cell centres and from a slab's entry
 // face (downstream pieces), on a grid that is the whole domain or a z slab of it, for a box of
