@@ -71,21 +71,30 @@ void ray_cells(const RayGrid& g, const Box& cells, const Vec3& b, const std::arr
     // away, beyond int (w_z = -1e-10 on 2 ranks: floor_to_int overflowed, and the walk ran 2^31
     // cells into memory until it failed). On a non-periodic x/y axis the cells where some
     // translate is inside the domain are c in (-hi, n - lo) (past() below): a start beyond them
-    // that moves away, or not at all, has nothing to add; one far before them moves up to a cell
-    // before them (the cells on the way add nothing either). Periodic axes drop whole periods.
+    // that moves away, or not at all, has nothing to add (beyond); one far before them moves up
+    // to a cell before them (the cells on the way add nothing either). Periodic axes drop whole
+    // periods.
     std::array<double, 3> pos = start;
+    // Whether no translate's cell on non-periodic axis a is, or will be, in the domain: the cell
+    // c the walk starts in (below) lies outside (-hi, n - lo) and the ray moves away or not at all.
+    const auto beyond = [&](int a) {
+        const double lo = -cells.hi[a], hi = g.domain[a] - cells.lo[a];
+        if (b[a] > 0) return pos[a] >= hi;        // c = floor(pos) >= hi
+        if (b[a] < 0) return pos[a] <= lo + 1;    // c = ceil(pos) - 1 <= lo
+        return pos[a] >= hi || pos[a] < lo + 1;   // c = floor(pos)
+    };
     double skip = 0.0;
     for (int a = 0; a < 2; ++a) {
         if (g.periodic[a]) continue;
+        if (beyond(a)) return;
         const double lo = -cells.hi[a], hi = g.domain[a] - cells.lo[a];
-        if ((pos[a] >= hi && !(b[a] < 0)) || (pos[a] < lo + 1 && !(b[a] > 0))) return;
         if (pos[a] < lo - 1) skip = std::max(skip, (lo - 1 - pos[a]) / b[a]);
         if (pos[a] > hi + 1) skip = std::max(skip, (hi + 1 - pos[a]) / b[a]);
     }
     if (skip > 0.0) {
         for (int a = 0; a < 3; ++a) pos[a] += skip * b[a];
         for (int a = 0; a < 2; ++a)
-            if (!g.periodic[a] && (pos[a] >= g.domain[a] - cells.lo[a] + 2 || pos[a] < -cells.hi[a] - 1)) return;
+            if (!g.periodic[a] && beyond(a)) return;
     }
     for (int a = 0; a < 2; ++a)
         if (g.periodic[a]) pos[a] -= g.domain[a] * std::floor(pos[a] / g.domain[a]);
@@ -108,10 +117,6 @@ void ray_cells(const RayGrid& g, const Box& cells, const Vec3& b, const std::arr
         return b[a] > 0 ? c[a] >= g.domain[a] - cells.lo[a] : (b[a] < 0 && c[a] <= -cells.hi[a]);
     };
     if (past(2)) return;
-    for (int a = 0; a < 2; ++a)
-        if (!g.periodic[a] && (c[a] >= g.domain[a] - cells.lo[a] || c[a] <= -cells.hi[a]) &&
-            (b[a] == 0 || past(a)))
-            return;  // no translate is or will be inside the domain
     double t = 0.0;
     for (;;) {
         const int a = next[0] <= next[1] ? (next[0] <= next[2] ? 0 : 2) : (next[1] <= next[2] ? 1 : 2);
