@@ -9,7 +9,8 @@
 // pieces partition every ray exactly and the image does not depend on the decomposition:
 // a trilinear sample at x_m needs only its cell and one neighbour layer (the ghost layer).
 //
-// Per step, kappa_b and J_b are the trilinear samples at x_m, held constant over the step and
+// Per step, kappa_b and J_b are the trilinear samples at x_m (with split lights, view_volume.h,
+// J_b = Jd_b + A_b e^{ln T_b} of the trilinear Jd, A and ln T), held constant over the step and
 // integrated exactly (Max 1995 §4 eq. 7 on one step of constant coefficients):
 //   C_b += T_b (J_b / kappa_b) (1 - e^{-kappa_b ds})  (-> T_b J_b ds as kappa_b ds -> 0),
 //   T_b *= e^{-kappa_b ds}.
@@ -38,6 +39,7 @@
 #pragma once
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -65,6 +67,9 @@ struct MarchView {
     const double* sigma_t = nullptr;
     bool uniform_sigma = false;      // all bands share sigma_t: one exponential per step
     const double* radiance_bound = nullptr;  // B_b per band (early termination, header comment)
+    int ncomp = 2;                   // floats per cell
+    bool split_lights = false;       // cells hold [rho, Jd.., A.., ln T..] (view_volume.h)
+    int a_offset = 0, log_t_offset = 0;
 };
 
 // Early termination (header comment): whether what lies behind a piece with C and T can move
@@ -113,22 +118,28 @@ inline constexpr int kMaxBands = 16;
 
 // Trilinear interpolation of the nc values of the 8 cells whose lowest corner is p, weights
 // (fx, fy, fz) along x, y, z. NB = 3 (4 floats per cell) runs four lanes at once.
+using f4 = float __attribute__((vector_size(16)));
+
+// trilinear<3>'s four lanes: the 4 floats at p of the 8 cells, weights (wx, wy, wz).
+inline f4 trilinear4(const float* p, std::ptrdiff_t sx, std::ptrdiff_t sy, std::ptrdiff_t sz, float wx, float wy,
+                     float wz) {
+    auto ld = [p](std::ptrdiff_t off) {
+        f4 x;
+        std::memcpy(&x, p + off, sizeof(x));
+        return x;
+    };
+    const f4 c00 = ld(0), c10 = ld(sy), c01 = ld(sz), c11 = ld(sz + sy);
+    const f4 a00 = c00 + wx * (ld(sx) - c00), a10 = c10 + wx * (ld(sy + sx) - c10);
+    const f4 a01 = c01 + wx * (ld(sz + sx) - c01), a11 = c11 + wx * (ld(sz + sy + sx) - c11);
+    const f4 b0 = a00 + wy * (a10 - a00), b1 = a01 + wy * (a11 - a01);
+    return b0 + wz * (b1 - b0);
+}
+
 template <int NB>
 inline void trilinear(const float* p, std::ptrdiff_t sx, std::ptrdiff_t sy, std::ptrdiff_t sz,
                       std::ptrdiff_t nc, double fx, double fy, double fz, double* s) {
     if constexpr (NB == 3) {
-        using f4 = float __attribute__((vector_size(16)));
-        auto ld = [p](std::ptrdiff_t off) {
-            f4 x;
-            std::memcpy(&x, p + off, sizeof(x));
-            return x;
-        };
-        const float wx = static_cast<float>(fx), wy = static_cast<float>(fy), wz = static_cast<float>(fz);
-        const f4 c00 = ld(0), c10 = ld(sy), c01 = ld(sz), c11 = ld(sz + sy);
-        const f4 a00 = c00 + wx * (ld(sx) - c00), a10 = c10 + wx * (ld(sy + sx) - c10);
-        const f4 a01 = c01 + wx * (ld(sz + sx) - c01), a11 = c11 + wx * (ld(sz + sy + sx) - c11);
-        const f4 b0 = a00 + wy * (a10 - a00), b1 = a01 + wy * (a11 - a01);
-        const f4 r = b0 + wz * (b1 - b0);
+        const f4 r = trilinear4(p, sx, sy, sz, static_cast<float>(fx), static_cast<float>(fy), static_cast<float>(fz));
         for (int c = 0; c < 4; ++c) s[c] = r[c];
     } else {
         for (std::ptrdiff_t c = 0; c < nc; ++c) {
@@ -157,14 +168,55 @@ inline void step_weights(double kappa, double ds, double& e, double& w) {
     }
 }
 
+// e^x for x in [-87, 0] (the split lights' ln T, view_volume.h; x is clamped to it, and e^-87 =
+// 1.6e-38 is float's smallest normal number: 2^n below it has no float) to 3e-7 relative,
+// four lanes at once: 2^n e^r with n = x / ln 2 rounded (by adding 1.5 x 2^23), r = x - n ln 2
+// (ln 2 in two parts, Cody and Waite) in [-ln 2 / 2, ln 2 / 2] and e^r by its Taylor polynomial
+// to r^6 (remainder below (ln 2 / 2)^7 / 7! = 1.3e-7). Test: RenderMarch.ExpOfLogTransmittance.
+inline constexpr float kMinLogT = -87.0f;
+inline f4 exp_log_t(f4 x) {
+    using i4 = int __attribute__((vector_size(16)));
+    const f4 lo = {kMinLogT, kMinLogT, kMinLogT, kMinLogT}, hi = {0.0f, 0.0f, 0.0f, 0.0f};
+    x = x < lo ? lo : x;
+    x = x > hi ? hi : x;
+    constexpr float kRound = 12582912.0f;  // 1.5 x 2^23
+    const f4 n = (x * 1.44269504f + kRound) - kRound;
+    const f4 r = (x - n * 0.693359375f) - n * -2.12194440e-4f;
+    const f4 p = 1.0f + r * (1.0f + r * (0.5f + r * (1.0f / 6 + r * (1.0f / 24 + r * (1.0f / 120 + r * (1.0f / 720))))));
+    const i4 bits = (__builtin_convertvector(n, i4) + 127) << 23;
+    return p * std::bit_cast<f4>(bits);
+}
+
+// The trilinear sample s[0] = rho, s[1 + b] = J_b of the 8 cells whose lowest corner is p
+// (split lights: J_b = Jd_b + A_b e^{ln T_b}, view_volume.h).
+template <int NB>
+inline void sample_cells(const MarchView& v, const float* p, double fx, double fy, double fz, double* s) {
+    const int nb = NB > 0 ? NB : v.nbands;
+    if constexpr (NB == 3) {
+        const float wx = static_cast<float>(fx), wy = static_cast<float>(fy), wz = static_cast<float>(fz);
+        f4 r = trilinear4(p, v.sx, v.sy, v.sz, wx, wy, wz);
+        if (v.split_lights) {  // cells [rho, Jd_0..2 | A_0..2, 0 | ln T_0..2, 0]
+            const f4 a = trilinear4(p + 4, v.sx, v.sy, v.sz, wx, wy, wz);
+            const f4 at = a * exp_log_t(trilinear4(p + 8, v.sx, v.sy, v.sz, wx, wy, wz));
+            r += f4{0.0f, at[0], at[1], at[2]};
+        }
+        for (int c = 0; c < 4; ++c) s[c] = r[c];
+    } else {
+        trilinear<NB>(p, v.sx, v.sy, v.sz, v.ncomp, fx, fy, fz, s);
+        if (v.split_lights)
+            for (int b = 0; b < nb; ++b) {
+                const float x = static_cast<float>(s[v.log_t_offset + b]);
+                s[1 + b] += s[v.a_offset + b] * exp_log_t(f4{x, x, x, x})[0];
+            }
+    }
+}
+
 // The one stepping loop of the ray caster: visits the steps [m_begin, m_end) in order, skipping
 // empty occupancy blocks without sampling; for every other step it takes the trilinear sample
 // s[0] = rho, s[1 + b] = J_b at the step midpoint and calls visit(m, s), which returns false to
 // stop the march (early termination). NB as in march_steps. Returns the number of steps sampled.
 template <int NB, class Visit>
 long for_each_sample(const MarchView& v, const RaySteps& r, int m_begin, int m_end, Visit&& visit) {
-    const int nb = NB > 0 ? NB : v.nbands;
-    const std::ptrdiff_t nc = 1 + nb;
     const std::ptrdiff_t sx = v.sx, sy = v.sy, sz = v.sz;
     const int bs = 1 << v.block_shift;
     long samples = 0;
@@ -194,8 +246,8 @@ long for_each_sample(const MarchView& v, const RaySteps& r, int m_begin, int m_e
         const int i0 = static_cast<int>(cx + 1.0) - 1, j0 = static_cast<int>(cy + 1.0) - 1,
                   k0 = static_cast<int>(cz + 1.0) - 1;
         const float* p = v.data + (k0 - v.alo[2]) * sz + (j0 - v.alo[1]) * sy + (i0 - v.alo[0]) * sx;
-        double s[NB > 0 ? 1 + NB : 1 + kMaxBands] = {};
-        trilinear<NB>(p, sx, sy, sz, nc, cx - i0, cy - j0, cz - k0, s);
+        double s[NB == 3 ? 4 : 1 + 3 * (NB > 0 ? NB : kMaxBands)] = {};
+        sample_cells<NB>(v, p, cx - i0, cy - j0, cz - k0, s);
         ++samples;
         if (!visit(m++, static_cast<const double*>(s))) break;
     }

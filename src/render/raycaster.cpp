@@ -1,5 +1,6 @@
 // Driver of the parallel ray caster (contract in raycaster.h). Per rank:
-//   1. source:    ViewVolume (rho and the view source J_b per cell, occupancy blocks)
+//   1. source:    ViewVolume (rho and the view source J_b per cell, or its parts with shadowed
+//                 lights, occupancy blocks)
 //      balance:   slab decompositions move z-layers of the view volume between ranks so that
 //                 each marches an equal share of the estimated samples (balance.h)
 //   2. march:     for every pixel whose ray crosses the rank's box, integrate the steps this
@@ -53,6 +54,10 @@ MarchView make_march_view(const ViewVolume& v) {
     mv.nblocks = v.nblocks;
     mv.block_shift = ViewVolume::kBlockShift;
     mv.nbands = v.nbands;
+    mv.ncomp = v.data.ncomp();
+    mv.split_lights = v.split_lights;
+    mv.a_offset = v.a_offset;
+    mv.log_t_offset = v.log_t_offset;
     mv.sigma_t = v.sigma_t.data();
     mv.radiance_bound = v.radiance_bound.data();
     mv.uniform_sigma = std::all_of(v.sigma_t.begin(), v.sigma_t.end(),

@@ -5,10 +5,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 #include "src/core/error.h"
 #include "src/physics/lights.h"
+#include "src/render/march.h"
 #include "src/render/source_kernel.h"
 #include "src/scene/emission.h"
 
@@ -103,17 +105,25 @@ ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, con
     v.owned = d.local();
     v.nbands = nb;
     for (const auto& band : m.bands) v.sigma_t.push_back(band.sigma_t);
-    v.data = Field<float>(d.local(), 1, 1 + nb, 0.0f);
-    v.radiance_bound.assign(static_cast<size_t>(nb) + 1, 0.0);  // + the flag "some J < 0"
-    const double kappa_floor = 1.0 / norm(m.grid.extent());
-
     const bool emits = rs.mode == RenderMode::emission || rs.mode == RenderMode::emission_absorption;
     const bool scatters = rs.mode == RenderMode::single_unshadowed || rs.mode == RenderMode::scattering;
     const bool shadows = rs.mode == RenderMode::scattering;
     const bool diffuse = shadows && !in.diffuse.fluence.empty();
     const bool flux = diffuse && !in.diffuse.flux.empty();
     const auto& lights = in.light.lights;
-    std::vector<double> J(static_cast<size_t>(nb));
+    // The layout (header comment): with shadowed lights [rho, Jd.. | A.. | ln T..], each group
+    // on a 4-float boundary with 3 bands (the march's vector width).
+    v.split_lights = shadows && !lights.empty();
+    const int group = nb == 3 ? 4 : nb;
+    v.a_offset = v.split_lights ? (nb == 3 ? 4 : 1 + nb) : 0;
+    v.log_t_offset = v.split_lights ? v.a_offset + group : 0;
+    v.data = Field<float>(d.local(), 1, v.split_lights ? v.log_t_offset + group : 1 + nb, 0.0f);
+    v.radiance_bound.assign(static_cast<size_t>(nb) + 1, 0.0);  // + the flag "some J < 0"
+    const double kappa_floor = 1.0 / norm(m.grid.extent());
+    // ln T below the march's floor (e^-87 of the light is nothing) is stored as the floor: -inf
+    // would turn the trilinear weights' products into NaN.
+    constexpr double kLogTFloor = kMinLogT;
+    std::vector<double> J(static_cast<size_t>(nb)), A(static_cast<size_t>(nb)), W(static_cast<size_t>(nb));
     // The scene's volume sources ([[sources]], emission.h) add their isotropic radiance
     // q_b = power_b / 4π to J in the physical (scattering) modes.
     const std::vector<VolumeSource> sources = scatters ? volume_sources(in.scene) : std::vector<VolumeSource>{};
@@ -128,12 +138,35 @@ ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, con
     const Int3 n = d.global().hi;
     auto wrap = [&](int a, int c) { return d.periodic(a) ? (c % n[a] + n[a]) % n[a] : c; };
 
+    // With split lights, the empty cells whose ln T a sample can weigh: those next to a cell
+    // with medium (a trilinear stencil without medium has A = 0). The rest keep 0 and cost
+    // nothing (most of a cloud's domain).
+    std::vector<std::uint8_t> near_medium;
+    if (v.split_lights) {
+        near_medium.assign(static_cast<size_t>(need.cells()), 0);
+        const Int3 sz{need.size(0), need.size(1), need.size(2)};
+        for_each_cell(need, [&](int i, int j, int k) {
+            if (!(m.rho(i, j, k) > 0.0)) return;
+            const Box around = Box{{i, j, k}, {i + 1, j + 1, k + 1}}.grown(1).intersect(need);
+            for_each_cell(around, [&](int a, int b, int c) {
+                near_medium[(static_cast<size_t>(c - need.lo[2]) * sz[1] + (b - need.lo[1])) * sz[0] +
+                            (a - need.lo[0])] = 1;
+            });
+        });
+    }
+    auto is_near_medium = [&](int i, int j, int k) {
+        return near_medium[(static_cast<size_t>(k - need.lo[2]) * need.size(1) + (j - need.lo[1])) * need.size(0) +
+                           (i - need.lo[0])] != 0;
+    };
+
     for_each_cell(need, [&](int i, int j, int k) {
         const double rho = m.rho(i, j, k);
         const Int3 src_cell{wrap(0, i), wrap(1, j), wrap(2, k)};
         float* cell = &v.data(i, j, k);
         cell[0] = static_cast<float>(rho);
-        if (!(rho > 0.0) || !(emits || scatters)) return;  // J = 0 where there is no medium
+        // J = 0 where there is no medium; ln T is wanted there too (the march interpolates it
+        // toward the medium's cells).
+        if (!(rho > 0.0 || (v.split_lights && is_near_medium(i, j, k))) || !(emits || scatters)) return;
         Vec3 w_out{0, 0, 1};
         if (scatters) {
             const Vec3 to_cam = camera - m.grid.center(i, j, k);
@@ -143,9 +176,11 @@ ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, con
             for (int b = 0; b < nb; ++b)
                 J[static_cast<size_t>(b)] = emission_source(band_value(rs.emission_color, b), rho * v.sigma_t[static_cast<size_t>(b)]);
         } else {
-            // Radiance scattered toward the camera per unit sigma_s, L_b. Bands sharing g (or
-            // sigma_t) with the previous band reuse its phase value (or transmittance).
+            // Radiance scattered toward the camera per unit sigma_s: J_b = Σ_l E0 T p(mu) and,
+            // without shadows, W_b = Σ_l E0 p(mu). Bands sharing g (or sigma_t) with the
+            // previous band reuse its phase value (or transmittance).
             std::fill(J.begin(), J.end(), 0.0);
+            std::fill(W.begin(), W.end(), 0.0);
             for (size_t l = 0; l < lights.size(); ++l) {
                 const double tau = shadows ? in.light.tau_rho[l](i, j, k) : 0.0;
                 double p = 0.0, T = 1.0;
@@ -154,7 +189,23 @@ ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, con
                     if (b == 0 || !same_g[static_cast<size_t>(b)]) p = hg_phase(o.g, dot(lights[l].w, w_out));
                     if (shadows && (b == 0 || !same_sigma[static_cast<size_t>(b)])) T = std::exp(-o.sigma_t * tau);
                     J[static_cast<size_t>(b)] += band_value(lights[l].E0, b) * T * p;  // E0 T p(mu)
+                    W[static_cast<size_t>(b)] += band_value(lights[l].E0, b) * p;
                 }
+            }
+            if (v.split_lights) {
+                // ln T_b = ln(J_b / W_b) and A_b = kappa a W_b, so that A_b T_b = kappa a J_b at
+                // the centre; the lights leave J (Jd below).
+                for (int b = 0; b < nb; ++b) {
+                    const BandOptics& o = m.bands[static_cast<size_t>(b)];
+                    const size_t bb = static_cast<size_t>(b);
+                    const double T = W[bb] > 0 ? J[bb] / W[bb] : 1.0;
+                    const double log_t = T > 0 ? std::clamp(std::log(T), kLogTFloor, 0.0) : kLogTFloor;
+                    cell[v.log_t_offset + b] = static_cast<float>(log_t);
+                    A[bb] = rho * o.sigma_t * o.albedo * W[bb];
+                    cell[v.a_offset + b] = static_cast<float>(A[bb]);
+                    J[bb] = 0.0;
+                }
+                if (!(rho > 0.0)) return;
             }
             for (int b = 0; b < nb; ++b) {
                 const BandOptics& o = m.bands[static_cast<size_t>(b)];
@@ -172,18 +223,21 @@ ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, con
             }
         }
         for (int b = 0; b < nb; ++b) {
-            if (!(std::abs(J[static_cast<size_t>(b)]) <= std::numeric_limits<float>::max()))
+            const size_t bb = static_cast<size_t>(b);
+            const double Jmax = std::abs(J[bb]) + (v.split_lights ? A[bb] : 0.0);
+            if (!(Jmax <= std::numeric_limits<float>::max()))
                 throw Error(fmt::format("render: the view source J = {:.3g} W/(m³ sr) of band {} at cell ({}, {}, {}) "
                                         "is beyond float32 (3.4e38): lower render.emission_color, the lights or "
                                         "the sources' power (or the density)",
-                                        J[static_cast<size_t>(b)], m.bands[static_cast<size_t>(b)].name, i, j, k));
-            cell[1 + b] = static_cast<float>(J[static_cast<size_t>(b)]);
-            // |J| / max(kappa, 1/L) as the march will see it (the stored floats; march.h).
-            const double Jf = cell[1 + b];
-            const double kappa = static_cast<double>(cell[0]) * v.sigma_t[static_cast<size_t>(b)];
-            double& S = v.radiance_bound[static_cast<size_t>(b)];
-            S = std::max(S, std::abs(Jf) / std::max(kappa, kappa_floor));
-            if (Jf < 0) v.radiance_bound.back() = 1.0;
+                                        Jmax, m.bands[bb].name, i, j, k));
+            cell[1 + b] = static_cast<float>(J[bb]);
+            // The largest |J| / max(kappa, 1/L) the march can see (the stored floats; march.h):
+            // with split lights J = Jd + A T <= |Jd| + A, as T <= 1.
+            const double Jf = std::abs(cell[1 + b]) + (v.split_lights ? cell[v.a_offset + b] : 0.0f);
+            const double kappa = static_cast<double>(cell[0]) * v.sigma_t[bb];
+            double& S = v.radiance_bound[bb];
+            S = std::max(S, Jf / std::max(kappa, kappa_floor));
+            if (cell[1 + b] < 0) v.radiance_bound.back() = 1.0;
         }
     });
     // Ghosts beyond a non-periodic face repeat the face cell (clamp to edge). The march stops at
@@ -195,7 +249,7 @@ ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, con
         bool outside = false;
         for (int a = 0; a < 3; ++a)
             if (!d.periodic(a) && (c[a] < 0 || c[a] >= n[a])) c[a] = std::clamp(c[a], 0, n[a] - 1), outside = true;
-        if (outside) std::copy_n(&v.data(c[0], c[1], c[2]), 1 + nb, &v.data(i, j, k));
+        if (outside) std::copy_n(&v.data(c[0], c[1], c[2]), v.data.ncomp(), &v.data(i, j, k));
     });
     build_occupancy(v);
     return v;

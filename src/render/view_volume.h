@@ -4,8 +4,20 @@
 // J_b trilinearly (Max 1995 §1: reconstruction between samples).
 //
 // Layout: float, owned box + 1 ghost layer (the ghosts come from the exchanged inputs), the
-// 1 + nbands values of a cell interleaved [rho, J_0, ..., J_{nb-1}] so one trilinear lookup
-// touches 8 short runs of memory. Occupancy: the owned box split into 8³-cell blocks; a block
+// values of a cell interleaved so one trilinear lookup touches 8 short runs of memory:
+// [rho, J_0, ..., J_{nb-1}], or in mode scattering with lights (split_lights)
+// [rho, Jd_0.., A_0.., ln T_0..] with J_b = Jd_b + A_b T_b: Jd the diffuse in-scatter and the
+// sources, A_b = kappa a_b Σ_l E0_l p_l the lights' single scatter without shadows and T_b =
+// Σ_l E0_l p_l T_l / Σ_l E0_l p_l <= 1 their mean transmittance, so that J_b is the lights'
+// single scatter at every cell centre. The march interpolates ln T, not J: the sun's T falls
+// exponentially through a lit cell, and between an empty cell (T = 1, kept next to the
+// medium) and a lit surface cell's centre (T = e^{-kappa h / 2} overhead) J interpolated from
+// 0 put the centre's dim value at the cloud's surface (a box at kappa h = 1 under an oblique
+// sun rendered 0.72 of its constant cells' single scatter, 0.92 with ln T; overhead 0.87 and
+// 0.94, RenderScattering.LitSurfaceOfAThickBox). Each band keeps its own T, so a band's image
+// does not depend on the other bands (PsfModel.BandImagesDoNotDepend...). With 3 bands the
+// groups are [rho, Jd_0..2 | A_0..2, 0 | ln T_0..2, 0], 4 floats each (the march's vector width).
+// Occupancy: the owned box split into 8³-cell blocks; a block
 // is empty when rho = 0 on all of its cells and a 1-cell apron, so any trilinear sample whose
 // nearest cell lies in the block reads only zeros (J = 0 wherever rho = 0) and can be skipped;
 // the bounding box of the occupied blocks lets a ray skip the empty margins in one step.
@@ -28,7 +40,9 @@ struct ViewVolume {
     Box owned;
     int nbands = 1;
     std::vector<double> sigma_t;          // per band, 1/m per unit density
-    Field<float> data;                    // [rho, J_0..J_{nb-1}] on owned + 1 ghost
+    Field<float> data;                    // [rho, J_0..J_{nb-1}] (or split, above) on owned + 1 ghost
+    bool split_lights = false;            // the layout with A and ln T (header comment)
+    int a_offset = 0, log_t_offset = 0;   // where A_0 and ln T_0 are in a cell (split_lights)
     Int3 nblocks{0, 0, 0};
     std::vector<std::uint8_t> occupied;   // nblocks x-fastest; 1 = may hold density
     Box occupied_cells;                   // bounding box of the occupied blocks' cells (may be empty)
