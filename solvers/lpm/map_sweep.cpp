@@ -363,12 +363,15 @@ private:
     // ±X/±Y maps: each direction's slot shift along v in the step, the exchange buffers.
     std::vector<int> dSv_;
     std::vector<double> to_hi_, to_lo_, from_lo_, from_hi_;
-    // Cyclic sweeps (periodic map axis): the lattice cycle K in passes, the map's power (all
-    // ranks) after each pass (P[0] = 0), the pass after which recording ends and this rank's
-    // power when it started. Steps deposit and count escapes, with weight record_weight_ = 1/K,
-    // only while recording_ (always, but in the filling passes of a cyclic sweep).
+    // Cyclic sweeps (periodic map axis): the lattice cycle K in passes, the map's rays (real
+    // slots of every direction) after each of the last K filling passes (pass mod K; dark before
+    // the first), the map's L1 power Σ |L| (all ranks) after pass K, the pass after which
+    // recording ends and this rank's power when it started. Steps deposit and count escapes,
+    // with weight record_weight_ = 1/K, only while recording_ (always, but in the filling passes
+    // of a cyclic sweep).
     long cycle_ = 1, record_end_ = 0;
-    std::vector<double> pass_power_;
+    std::vector<std::vector<double>> cycle_rays_;
+    double cycle_l1_ = 0.0;
     double recorded_start_power_ = 0.0, record_weight_ = 1.0;
     bool recording_ = true;
 };
@@ -663,8 +666,8 @@ void MapSweep::sweep_z_group(int grp, sweep::ChainIO& io) {
 // too near or too far (10-20% across the layers of a uniform periodic slab at n = 10, p = 6).
 // Instead Ũ drives every pass: the filling passes only carry light (no deposits, no escapes
 // counted) until what the map still lacks from its dark start is
-// below kCyclicTolerance (the light of the first K passes still in it, P_k - P_{k-K}: the
-// map's state is K-periodic once its dark start has died away), then the K passes of one
+// below kCyclicTolerance (the light of the first K passes still in it, L_k - L_{k-K}, in L1:
+// the map's state is K-periodic once its dark start has died away), then the K passes of one
 // lattice cycle are recorded with weight 1/K: every ray carries its whole straight line's
 // light, the K offsets are averaged, and source = deposited + escaped + truncated holds
 // exactly (truncated = what the map gained over the cycle, / K).
@@ -677,7 +680,9 @@ void MapSweep::sweep_lateral() {
     cycle_ = cyclic ? p_ / std::gcd(p_, n * R_) : 1;
     recording_ = !cyclic;
     record_weight_ = 1.0;
-    pass_power_.assign(1, 0.0);
+    cycle_rays_.assign(cyclic ? static_cast<size_t>(cycle_) : 0,
+                       std::vector<double>(cyclic ? sl_.real_size() * static_cast<size_t>(nd_) : 0, 0.0));
+    cycle_l1_ = 0.0;
     for (long t = 0;; ++t) {
         if (t > 0 && t % n == 0 && pass_ends_sweep(t)) break;
         for (int l = 0; l < nd_; ++l)
@@ -692,10 +697,14 @@ void MapSweep::sweep_lateral() {
 
 // At the end of a pass (step t): on an open map axis the sweep ends, the light left in the
 // map leaving through the far face. On a periodic one (sweep_lateral), after filling pass k
-// the recording of passes k+1 .. k+K starts when P_k - P_{k-K} <= kCyclicTolerance P_K
-// (P_k: the map's power after pass k, all ranks), when P_k = 0 (no light crosses the seam, so
-// none from earlier periods ever arrives: the dark start is the steady state) or when the last
-// of them would be the kMaxCyclicPasses-th; after the last one the sweep ends.
+// the recording of passes k+1 .. k+K starts when |L_k - L_{k-K}| <= kCyclicTolerance |L_K|
+// (L_k: the map's rays after pass k; |.|: Σ over all rays and ranks of the power of |L|),
+// when |L_k| = 0 (no light crosses the seam, so none from earlier periods ever arrives: the
+// dark start is the steady state) or when the last of them would be the kMaxCyclicPasses-th;
+// after the last one the sweep ends. The norm, not the signed power P_k: Ũ, and so L, has
+// either sign after a DSA correction (solve_band.h), and then P_k - P_{k-K} (= |L_k - L_{k-K}|
+// for light of one sign) can be negative or cancel long before the map is full; recording
+// from there left the light still missing as `truncated` and shifted the fixed point.
 bool MapSweep::pass_ends_sweep(long t) {
     double power = 0.0;
     for (int l = 0; l < nd_; ++l) power += map_power(l, rays(A_, l));
@@ -709,11 +718,25 @@ bool MapSweep::pass_ends_sweep(long t) {
         acc_.truncated += (power - recorded_start_power_) * record_weight_;
         return true;
     }
-    double all = power;
-    MPI_Allreduce(MPI_IN_PLACE, &all, 1, MPI_DOUBLE, MPI_SUM, d_.comm());
-    pass_power_.push_back(all);
-    const size_t k = static_cast<size_t>(pass), K = static_cast<size_t>(cycle_);
-    const bool filled = all == 0.0 || (k >= K && all - pass_power_[k - K] <= kCyclicTolerance * pass_power_[K]);
+    // L1 power of the change over the last cycle and of the map, this rank's, then all ranks';
+    // the map replaces pass k - K's in the ring.
+    double l1[2] = {0.0, 0.0};
+    const size_t real = sl_.real_size();
+    double* last = cycle_rays_[static_cast<size_t>(pass % cycle_)].data();
+    for (int l = 0; l < nd_; ++l, last += real) {
+        const double* a = rays(A_, l) + sl_.row(0);
+        double change = 0.0, size = 0.0;
+        for (size_t i = 0; i < real; ++i) {
+            change += std::abs(a[i] - last[i]);
+            size += std::abs(a[i]);
+            last[i] = a[i];
+        }
+        l1[0] += change * ef_[static_cast<size_t>(l)];
+        l1[1] += size * ef_[static_cast<size_t>(l)];
+    }
+    MPI_Allreduce(MPI_IN_PLACE, l1, 2, MPI_DOUBLE, MPI_SUM, d_.comm());
+    if (pass == cycle_) cycle_l1_ = l1[1];
+    const bool filled = l1[1] == 0.0 || (pass >= cycle_ && l1[0] <= kCyclicTolerance * cycle_l1_);
     if (filled || pass + cycle_ >= kMaxCyclicPasses) {
         recording_ = true;
         record_end_ = pass + cycle_;
