@@ -11,12 +11,18 @@
 namespace nimbus {
 
 FieldError field_error(const std::vector<double>& a, const std::vector<double>& b,
-                       const std::vector<double>& density, const std::vector<double>* stderr_b) {
+                       const std::vector<double>& density, const std::vector<double>* stderr_b,
+                       const std::vector<double>* stderr_a) {
     if (a.size() != b.size() || density.size() != b.size())
         throw Error(fmt::format("compare: fields differ in size ({} and {} cells, density {})", a.size(),
                                 b.size(), density.size()));
     if (stderr_b != nullptr && stderr_b->size() != b.size())
         throw Error("compare: the reference's standard error has a different size than its field");
+    if (stderr_a != nullptr && stderr_a->size() != a.size())
+        throw Error("compare: A's standard error has a different size than its field");
+    if (stderr_b == nullptr) stderr_a = nullptr;  // z needs the reference's noise
+    // Whether a run's standard error s at a cell of value v is usable (kZRelStderr).
+    auto usable = [](double s, double v) { return s > 0 && s < kZRelStderr * std::abs(v); };
     FieldError e;
     double diff2 = 0.0, b2 = 0.0, max_b = 0.0, z2 = 0.0;
     std::size_t nz = 0;
@@ -28,9 +34,10 @@ FieldError field_error(const std::vector<double>& a, const std::vector<double>& 
         e.max_abs = std::max(e.max_abs, std::abs(d));
         max_b = std::max(max_b, std::abs(b[c]));
         ++e.cells;
-        if (stderr_b != nullptr && (*stderr_b)[c] > 0) {
-            const double z = d / (*stderr_b)[c];
-            z2 += z * z;
+        if (stderr_b != nullptr && usable((*stderr_b)[c], b[c]) &&
+            (stderr_a == nullptr || usable((*stderr_a)[c], a[c]))) {
+            const double sa = stderr_a != nullptr ? (*stderr_a)[c] : 0.0, sb = (*stderr_b)[c];
+            z2 += d * d / (sa * sa + sb * sb);
             ++nz;
         }
     }
@@ -49,7 +56,7 @@ FieldError field_error(const std::vector<double>& a, const std::vector<double>& 
     }
     if (stderr_b != nullptr && nz == 0) {
         e.rms_z = undefined;
-        e.undefined = "the reference's standard error is zero on every cell compared";
+        e.undefined = "no cell compared has a usable standard error (above 0, below half the value)";
     }
     e.rel_l2 = e.norm_b > 0 ? e.abs_l2 / e.norm_b : undefined;
     e.max_rel = max_b > 0 ? e.max_abs / max_b : undefined;

@@ -3,8 +3,9 @@
 // error of fields/fluence_diffuse/<band> over cells with density > 0, and the RMS of
 // (a - b) / stderr when B has fields/fluence_diffuse_stderr/<band> (a Monte Carlo reference);
 // image RMSE and relative error when both images are given. Warns (and flags in --json) when
-// the density fields or the cell sizes of A and B differ: runs of different media. RMS z leaves out
-// the cells where B's standard error is 0 and says how many it used. A metric whose denominator is
+// the density fields or the cell sizes of A and B differ: runs of different media; and when their
+// stored scenes differ in the problem's other settings (problem_differences). RMS z leaves out
+// the cells without a usable standard error (compare.h) and says how many it used. A metric whose denominator is
 // zero (a zero reference field, a black reference image; src/analysis/compare.h) is printed as
 // "undefined" with a line saying why and giving the absolute difference; in --json it is null
 // and the band (or image) gains "undefined": the reason. Rank 0 reads and prints; an error is
@@ -18,6 +19,8 @@
 #include <filesystem>
 #include <memory>
 #include <optional>
+#include <sstream>
+#include <toml.hpp>
 #include <nlohmann/json.hpp>
 
 #include "io/output/hdf5_reader.h"
@@ -42,6 +45,62 @@ std::optional<Scene> stored_scene(const std::string& file) {
         log::warn("'{}': its stored scene cannot be read, so its cell size is not compared: {}", file, e.what());
         return std::nullopt;
     }
+}
+
+// Where two toml values differ, as dotted key paths under `path` (tables key by key, arrays of
+// tables element by element, anything else as a whole).
+void toml_differences(const toml::value& a, const toml::value& b, const std::string& path,
+                      std::vector<std::string>& out) {
+    if (a.is_table() && b.is_table()) {
+        std::vector<std::string> keys;
+        for (const auto& [k, v] : a.as_table()) keys.push_back(k);
+        for (const auto& [k, v] : b.as_table())
+            if (!a.contains(k)) keys.push_back(k);
+        static const toml::value missing;
+        for (const std::string& k : keys)
+            toml_differences(a.contains(k) ? a.at(k) : missing, b.contains(k) ? b.at(k) : missing,
+                             path + "." + k, out);
+    } else if (a.is_array() && b.is_array() && a.size() == b.size() && !a.as_array().empty() &&
+               a.as_array()[0].is_table()) {
+        for (std::size_t i = 0; i < a.size(); ++i)
+            toml_differences(a.as_array()[i], b.as_array()[i], fmt::format("{}[{}]", path, i), out);
+    } else if (!(a == b)) {
+        out.push_back(path);
+    }
+}
+
+// The settings of the problem whose fields A and B hold that differ between their scenes: the
+// optics, the lights, the volume sources and the periodic faces (the medium is compared by its
+// fields), and with images also what they are seen through (camera, background, render). The
+// model, its options, the light method and the outputs may differ: that is what compare is for.
+// Both scenes are written back by scene_to_toml, so one setting is one text.
+std::vector<std::string> problem_differences(const Scene& a, const Scene& b, bool images) {
+    std::istringstream text_a(scene_to_toml(a)), text_b(scene_to_toml(b));
+    const toml::value va = toml::parse(text_a, "A"), vb = toml::parse(text_b, "B");
+    const bool no_sun = !a.sun.enabled && !b.sun.enabled;
+    auto dark = [](const Scene& s) {
+        return std::all_of(s.sky.radiance.begin(), s.sky.radiance.end(), [](double L) { return L == 0.0; });
+    };
+    const bool no_sky = dark(a) && dark(b);
+    std::vector<std::string> roots = {"optics", "sources", "grid.periodic"};
+    if (!no_sun) roots.push_back("sun");
+    if (!no_sky) roots.push_back("sky");
+    if (images) roots.insert(roots.end(), {"camera", "background", "render"});
+    std::vector<std::string> out;
+    static const toml::value missing;
+    for (const std::string& root : roots) {
+        const toml::value* x = &va;
+        const toml::value* y = &vb;
+        std::istringstream keys(root);
+        for (std::string k; std::getline(keys, k, '.');) {
+            x = x->is_table() && x->contains(k) ? &x->at(k) : &missing;
+            y = y->is_table() && y->contains(k) ? &y->at(k) : &missing;
+        }
+        std::vector<std::string> found;
+        toml_differences(*x, *y, "", found);
+        for (const std::string& f : found) out.push_back(root + f);
+    }
+    return out;
 }
 
 // The bands in the order of the reference run's scene, as the user wrote them; names it does
@@ -108,6 +167,12 @@ nlohmann::json compare_runs(const CompareArgs& args) {
     if (h_b > 0) out["cell_size_m_b"] = h_b;
     out["same_cells"] = same_cells;
     out["same_medium"] = density_diff <= kSameMediumTolerance && same_cells;
+    const bool images = !args.image_a.empty() || !args.image_b.empty();
+    if (scene_a && scene_b) {
+        const std::vector<std::string> diff = problem_differences(*scene_a, *scene_b, images);
+        out["same_problem"] = diff.empty();
+        out["problem_differences"] = diff;
+    }
     // Bands of A that the reference lacks are not compared: listed, so that the report says so.
     std::vector<std::string> not_compared;
     for (const std::string& band : list_group(args.a, field))
@@ -125,19 +190,26 @@ nlohmann::json compare_runs(const CompareArgs& args) {
                                     fb.shape[2]));
         require_finite(fa.values, args.a, path);
         require_finite(fb.values, args.b, path);
-        std::vector<double> stderr_b;
-        const bool with_stderr = has_dataset(args.b, err + "/" + band);
-        if (with_stderr) stderr_b = read_field(args.b, err + "/" + band).values;
-        if (with_stderr) require_finite(stderr_b, args.b, err + "/" + band);
-        const FieldError e = field_error(fa.values, fb.values, density.values, with_stderr ? &stderr_b : nullptr);
+        // The standard errors of Monte Carlo runs: B's makes RMS z, A's joins it (two runs).
+        auto read_stderr = [&](const std::string& file, std::vector<double>& s) {
+            if (!has_dataset(file, err + "/" + band)) return false;
+            s = read_field(file, err + "/" + band).values;
+            require_finite(s, file, err + "/" + band);
+            return true;
+        };
+        std::vector<double> stderr_a, stderr_b;
+        const bool with_stderr = read_stderr(args.b, stderr_b);
+        const bool a_stderr = with_stderr && read_stderr(args.a, stderr_a);
+        const FieldError e = field_error(fa.values, fb.values, density.values, with_stderr ? &stderr_b : nullptr,
+                                         a_stderr ? &stderr_a : nullptr);
         // NaN (undefined) is written as null.
         nlohmann::json j = {{"band", band},     {"rel_l2", e.rel_l2}, {"max_rel", e.max_rel},
                             {"cells", e.cells}, {"abs_l2", e.abs_l2}, {"max_abs", e.max_abs}};
-        if (with_stderr) j["rms_z"] = e.rms_z, j["z_cells"] = e.z_cells;
+        if (with_stderr) j["rms_z"] = e.rms_z, j["z_cells"] = e.z_cells, j["z_with_stderr_a"] = a_stderr;
         if (!e.undefined.empty()) j["undefined"] = e.undefined;
         out["bands"].push_back(j);
     }
-    if (!args.image_a.empty() || !args.image_b.empty()) {
+    if (images) {
         if (args.image_a.empty() || args.image_b.empty())
             throw Error("compare: give both --image-a and --image-b");
         const Image ia = read_exr(args.image_a), ib = read_exr(args.image_b);
@@ -171,14 +243,16 @@ void print_table(const nlohmann::json& r) {
                           metric(b["max_rel"].get<double>(), "{:.4e}"),
                           b.contains("rms_z") ? metric(b["rms_z"].get<double>(), "{:.3f}") : "-",
                           b["cells"].get<std::size_t>()));
-    // RMS z leaves out the cells where the reference has no standard error: say how many.
+    // RMS z leaves out the cells without a usable standard error: say how many.
     for (const auto& b : r["bands"])
         if (b.contains("z_cells") && b["z_cells"].get<std::size_t>() > 0 &&
             b["z_cells"].get<std::size_t>() < b["cells"].get<std::size_t>())
-            print(fmt::format("{}: RMS z over {} of the {} cells; the reference's standard error is 0 on the "
-                              "others (its paths did not reach them: run it with more photons)\n",
+            print(fmt::format("{}: RMS z over {} of the {} cells; on the others the standard error{} 0 or at "
+                              "least half the value (no path or only a few batches reached them: run with more "
+                              "photons)\n",
                               b["band"].get<std::string>(), b["z_cells"].get<std::size_t>(),
-                              b["cells"].get<std::size_t>()));
+                              b["cells"].get<std::size_t>(),
+                              b["z_with_stderr_a"].get<bool>() ? " of A or B is" : " of the reference is"));
     // Why a metric is undefined, and what can still be said: the absolute difference.
     for (const auto& b : r["bands"])
         if (b.contains("undefined"))
@@ -212,8 +286,11 @@ void add_compare_command(CLI::App& app) {
         ->check(CLI::ExistingFile);
     cmd->footer(
         "Per band, over the cells with density: rel L2 = ||a - b||_2 / ||b||_2; max rel = max|a - b| / "
-        "max|b| (relative to the reference's maximum, not per cell); RMS z = sqrt(mean(((a - b) / s_b)^2)) "
-        "where B has a standard error s_b (Monte Carlo): about 1 when A agrees with B within B's noise. "
+        "max|b| (relative to the reference's maximum, not per cell); RMS z = sqrt(mean((a - b)^2 / s^2)) "
+        "where B has a standard error s_b (Monte Carlo), s^2 = s_b^2 (+ s_a^2 when A is a Monte Carlo run too), "
+        "over the cells where each s is below half the value: about 1 when A agrees with B within the noise. "
+        "Warns when the scenes differ in optics, lights, sources or periodic faces (and, with images, in "
+        "camera, background or render): different problems. "
         "Images: RMSE over pixels and RGB, relative error ||a - b|| / ||b||.");
     cmd->add_flag("--json", args->json, "print JSON instead of a table");
     cmd->add_option("--field", args->field, "per-band field to compare: fluence_diffuse | fluence_reduced | "
@@ -243,6 +320,15 @@ void add_compare_command(CLI::App& app) {
             log::warn("the density fields of {} and {} differ (max relative difference {:.3g}): these are runs of "
                       "different media, and the errors compare different problems",
                       args->a, args->b, result["density_max_rel_diff"].get<double>());
+        if (result.contains("same_problem") && !result["same_problem"].get<bool>()) {
+            const auto& diff = result["problem_differences"];
+            std::string keys;
+            for (std::size_t i = 0; i < diff.size() && i < 6; ++i) keys += (i ? ", " : "") + diff[i].get<std::string>();
+            if (diff.size() > 6) keys += fmt::format(" and {} more", diff.size() - 6);
+            log::warn("the scenes of {} and {} differ in {}: these runs solve different problems, and the errors "
+                      "mix the model's error with that difference",
+                      args->a, args->b, keys);
+        }
         if (!result["bands_not_in_b"].empty())
             log::warn("{} has band{} {} that the reference {} lacks: not compared", args->a,
                       result["bands_not_in_b"].size() == 1 ? "" : "s", result["bands_not_in_b"].dump(), args->b);

@@ -132,7 +132,7 @@ if run_small a && run_small a2 && run_small b --set medium.density=2.0; then
   fi
   # A reference whose few paths left cells unreached: RMS z is over the others, and says so.
   if run_small few --set model.montecarlo.photons=300 --set model.montecarlo.batches=4; then
-    check "compare: RMS z over the reached cells" 0 "r: RMS z over [0-9]* of the [0-9]* cells; the reference's standard error is 0 on the others" compare "$a" "$tmp/few/nimbus.h5"
+    check "compare: RMS z over the reached cells" 0 "r: RMS z over [0-9]* of the [0-9]* cells; on the others the standard error of .* is 0 or at least half the value" compare "$a" "$tmp/few/nimbus.h5"
   else
     fail=$((fail + 1)); echo "FAIL: the small run with few photons did not run"
   fi
