@@ -221,7 +221,13 @@ void TableReader::read(const std::string& key, bool& out) const {
 void TableReader::read(const std::string& key, std::string& out) const {
     if (!has(key)) return;
     const toml::value& v = at(key);
-    if (!v.is_string()) fail(key, fmt::format("must be a string {}", found(v)));
+    // A number or a date where text belongs is usually text that TOML read as one (--set
+    // output.name=2024): say how to quote it.
+    if (!v.is_string())
+        fail(key, fmt::format("must be a string {}{}", found(v),
+                              v.is_array() || v.is_table() ? ""
+                                                           : "; quote text that looks like a number or a date: "
+                                                             "key = \"2024\" in a file, --set 'key=\"2024\"'"));
     out = v.as_string().str;
 }
 

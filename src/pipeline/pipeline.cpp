@@ -92,7 +92,10 @@ void prepare_output_dir(MPI_Comm comm, const std::string& dir, CreatedFolders& c
         std::vector<fs::path> missing;  // innermost first
         fs::path p = fs::absolute(dir, ec_probe).lexically_normal();
         if (p.filename().empty()) p = p.parent_path();  // "out/" -> "out"
-        for (; !p.empty() && p != p.parent_path() && !fs::exists(p, ec_probe); p = p.parent_path())
+        // symlink_status: a link whose target is missing (or a loop) is the user's, not missing:
+        // following it made it look absent, and a failed run removed the link (a QA finding).
+        for (; !p.empty() && p != p.parent_path() && !fs::exists(fs::symlink_status(p, ec_probe));
+             p = p.parent_path())
             missing.push_back(p);
         // Registered before they exist: a signal during create_directories still finds them
         // (removing a folder that was not made yet is a no-op).
@@ -109,7 +112,8 @@ void prepare_output_dir(MPI_Comm comm, const std::string& dir, CreatedFolders& c
 
 // The run's outputs must not replace its input density file (a run with output.dir and
 // output.name pointing at medium.file used to overwrite the user's data, and the next run failed
-// to read it). Rank 0 decides (the output folder exists by now); every rank fails together.
+// to read it). Rank 0 decides (an output that does not exist yet is no file); every rank fails
+// together.
 void check_outputs_spare_input(MPI_Comm comm, const Scene& scene) {
     int rank = 0;
     MPI_Comm_rank(comm, &rank);
@@ -131,6 +135,39 @@ void check_outputs_spare_input(MPI_Comm comm, const Scene& scene) {
         }
     }
     check_collective(comm, msg.empty(), msg);
+}
+
+// The output location's checks that need no folder made, so that `nimbus info` refuses what a
+// run would, before any solve (a QA finding: info passed all three): the path's length, a
+// file where the output folder goes, a folder (or anything but a file) where an output file
+// goes, an output that is the density file. Rank 0 looks; every rank fails together.
+void check_output_location(MPI_Comm comm, const Scene& scene) {
+    if (!(scene.output.hdf5 || scene.output.image)) return;  // a run without outputs opens no file
+    check_output_path_length(comm, scene);
+    int rank = 0;
+    MPI_Comm_rank(comm, &rank);
+    std::string msg;
+    if (rank == 0) {
+        std::error_code ec;
+        const fs::path dir = scene.output.dir;
+        if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) {
+            msg = fmt::format("output folder '{}' cannot be created or is not writable: it is a file", scene.output.dir);
+        } else {
+            std::vector<std::string> outputs;
+            if (scene.output.hdf5) outputs = {".h5", ".xdmf"};
+            if (scene.output.image) outputs.insert(outputs.end(), {".exr", ".png"});
+            for (const std::string& ext : outputs) {
+                const fs::path out = (dir / scene.output.name).string() + ext;
+                const fs::file_status st = fs::symlink_status(out, ec);
+                if (fs::exists(st) && !fs::is_regular_file(st) && !fs::is_symlink(st)) {
+                    msg = fmt::format("cannot write output file '{}': it exists and is not a file", out.string());
+                    break;
+                }
+            }
+        }
+    }
+    check_collective(comm, msg.empty(), msg);
+    check_outputs_spare_input(comm, scene);
 }
 
 // An output this run does not write (output.hdf5 or output.image false) that an earlier run left
@@ -305,8 +342,7 @@ Scene load_run_scene(MPI_Comm comm, const RunOptions& opts) {
                                         : load_scene_file(opts.scene_path, opts.overrides);
         if (!opts.out_dir.empty()) scene.output.dir = opts.out_dir;
     });
-    // So that `nimbus info` refuses what a run would (a run without outputs opens no file).
-    if (scene.output.hdf5 || scene.output.image) check_output_path_length(comm, scene);
+    check_output_location(comm, scene);  // so that `nimbus info` refuses what a run would
     // A --set of another model's option is valid (scene files carry options for several models)
     // but has no effect on this run: say so, since it was typed for this run.
     for (const std::string& o : opts.overrides) {
@@ -347,9 +383,8 @@ RunResult run_pipeline(MPI_Comm comm, const Scene& scene) {
     });
     CreatedFolders created;  // removed again unless the outputs are committed
     if (scene.output.hdf5 || scene.output.image) {
-        check_output_path_length(comm, scene);
+        check_output_location(comm, scene);
         prepare_output_dir(comm, scene.output.dir, created);
-        check_outputs_spare_input(comm, scene);
         warn_of_outputs_left(comm, scene);
     }
 

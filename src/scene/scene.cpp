@@ -24,14 +24,21 @@ void require(bool ok, const std::string& msg) {
 // a cell's optical thickness, the domain's extent) makes solvers overflow before any output.
 constexpr double kFloatMax = std::numeric_limits<float>::max();
 
-void require_bands(const std::vector<double>& v, int nb, const char* key) {
+// field_per_value: the largest field one unit of the value makes (a radiance L over the sky's
+// hemisphere is a fluence of 2π L).
+void require_bands(const std::vector<double>& v, int nb, const char* key, double field_per_value = 1.0) {
     require(static_cast<int>(v.size()) == nb || v.size() == 1,
             nb == 1 ? fmt::format("{} has {} values but the scene has 1 band: give 1", key, v.size())
                     : fmt::format("{} has {} values but the scene has {} bands: give 1 or {}", key, v.size(), nb, nb));
     for (double x : v) {
         require(std::isfinite(x) && x >= 0.0, fmt::format("{} = {} must be finite and >= 0", key, x));
-        require(x <= kFloatMax, fmt::format("{} = {} is beyond single precision ({:.3g}), in which the output "
-                                            "stores the fields it scales", key, x, kFloatMax));
+        require(x * field_per_value <= kFloatMax,
+                field_per_value == 1.0
+                    ? fmt::format("{} = {} is beyond single precision ({:.3g}), in which the output stores the "
+                                  "fields it scales", key, x, kFloatMax)
+                    : fmt::format("{} = {} makes fields of {:.3g} x {} = {:.3g}, beyond single precision ({:.3g}), "
+                                  "in which the output stores them", key, x, field_per_value, x,
+                                  field_per_value * x, kFloatMax));
     }
 }
 
@@ -289,10 +296,9 @@ void Scene::validate() const {
                 "sun.direction must be a non-zero finite vector");
         require_bands(sun.irradiance, nbands(), "sun.irradiance");
     }
-    if (!sky.radiance.empty()) {
-        require_bands(sky.radiance, nbands(), "sky.radiance");
-        require(sky.directions >= 1 && sky.directions <= 4096, "sky.directions must be in [1, 4096]");
-    }
+    // Also with the sky off: the scene is stored, and a stored -3 failed only once the sky was on.
+    require(sky.directions >= 1 && sky.directions <= 4096, "sky.directions must be in [1, 4096]");
+    if (!sky.radiance.empty()) require_bands(sky.radiance, nbands(), "sky.radiance", 2.0 * std::numbers::pi);
     validate_sources(*this);
     require(camera.width > 0 && camera.height > 0 && camera.width <= 16384 && camera.height <= 16384,
             "camera.resolution must be between 1 and 16384 pixels per side");

@@ -216,5 +216,29 @@ for out_dir in "$tmp/new/deeper" "$tmp/existing/sub/" "$tmp/existing"; do
   fi
 done
 
+# The output location's checks that need no folder made: `info` refuses as a run does.
+touch "$tmp/a_file"
+mkdir -p "$tmp/dir_out/nimbus.exr"
+SUB=info expect_error "output folder '.*a_file' cannot be created or is not writable: it is a file" "${small[@]}" \
+  --set "output.dir=\"$tmp/a_file\""
+SUB=info expect_error "cannot write output file '.*dir_out/nimbus.exr': it exists and is not a file" "${small[@]}" \
+  --set "output.dir=\"$tmp/dir_out\""
+SUB=info expect_error "output '.*ow/nimbus.h5' would overwrite the density file medium.file" "${small[@]}" \
+  --set 'medium.kind="raw"' --set "medium.file=\"$tmp/ow/nimbus.h5\"" --set "output.dir=\"$tmp/ow\""
+
+# An output folder that is a symlink to a folder not made yet (out -> /scratch/... before the
+# target exists; or a loop) is the user's: a run that fails there keeps the link.
+ln -sfn "$tmp/no_such_target" "$tmp/dangling"
+ln -sfn "$tmp/loop_b" "$tmp/loop_a" && ln -sfn "$tmp/loop_a" "$tmp/loop_b"
+for out_dir in "$tmp/dangling" "$tmp/dangling/sub" "$tmp/loop_a"; do
+  out=$(timeout 120 "$mpiexec" -n "$np" "$nimbus" run "${small[@]}" --out "$out_dir" 2>&1); code=$?
+  if [ $code -ne 0 ] && [ -L "$tmp/dangling" ] && [ -L "$tmp/loop_a" ]; then
+    pass=$((pass + 1))
+  else
+    fail=$((fail + 1)); echo "FAIL: a failed run with --out $out_dir removed the user's symlink (exit $code)"
+    ls -la "$tmp" | head; echo "$out" | tail -3
+  fi
+done
+
 echo "$pass passed, $fail failed"
 [ $fail -eq 0 ]

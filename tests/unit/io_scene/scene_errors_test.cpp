@@ -112,6 +112,21 @@ TEST(SceneErrors, IntegersBeyondSixtyFourBitsAreRefused) {
     expect_error(negative, "seed = -9", {"model.montecarlo.seed", "beyond the 64-bit integer range"});
 }
 
+// Text that TOML reads as a number or a date (an --set of output.name=2024, a QA finding)
+// is refused with the way to quote it.
+TEST(SceneErrors, TextThatLooksLikeANumberOrADateSaysHowToQuoteIt) {
+    expect_error(kBase + "[output]\nname = 2024\n", "name = 2024",
+                 {"output.name must be a string (found integer 2024)", "quote text", "--set 'key=\"2024\"'"});
+    expect_error(kBase + "[output]\ndir = 2026-11-30\n", "dir = 2026-11-30", {"output.dir must be a string", "quote text"});
+    try {
+        load_scene_string(kBase, "ok.toml", {"output.name=2024"});
+        ADD_FAILURE() << "no error for --set output.name=2024";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("--set 'key=\"2024\"'"), std::string::npos) << e.what();
+    }
+    EXPECT_NO_THROW(load_scene_string(kBase, "ok.toml", {"output.name=\"2024\""}));
+}
+
 TEST(SceneErrors, AlbedoOutsideZeroOne) {
     const std::string text = edit("albedo = 0.9", "albedo = 1.2");
     expect_error(text, "albedo = 1.2", {"optics[0].albedo", "1.2 is outside [0, 1]"});
@@ -397,7 +412,14 @@ TEST(SceneErrors, NumbersBeyondSinglePrecisionScale) {
                  {"medium.density x optics band 'gray' sigma_t x the cell size in m = 1e+40", "optical thickness"});
     expect_error(edit("", "[sun]\nirradiance = 1e300"), "irradiance",
                  {"sun.irradiance = 1e+300 is beyond single precision"});
-    expect_error(edit("", "[sky]\nradiance = 1e39"), "radiance", {"sky.radiance = 1e+39 is beyond single precision"});
+    expect_error(edit("", "[sky]\nradiance = 1e39"), "radiance", {"sky.radiance = 1e+39 makes fields of", "beyond single precision"});
+    // The sky's fluence is 2π L: 1e38 (in float range) gave a fluence_reduced of 6e38, refused
+    // only when the output was written, after every solve (a QA finding).
+    expect_error(edit("", "[sky]\nradiance = 1e38"), "radiance",
+                 {"sky.radiance = 1e+38 makes fields of 6.28 x 1e+38 = 6.28e+38, beyond single precision"});
+    EXPECT_NO_THROW(load_scene_string(edit("", "[sky]\nradiance = 5e37"), "ok.toml"));
+    // sky.directions is checked with the sky off too (the scene is stored as given).
+    expect_error(edit("", "[sky]\ndirections = -3"), "directions", {"sky.directions must be in [1, 4096]"});
     EXPECT_NO_THROW(load_scene_string(edit("cell_size = 1.0", "cell_size = 1e20"), "ok.toml"));
 }
 
