@@ -40,10 +40,23 @@ MemoryEstimate estimate_memory(const Scene& s, const Decomposition& d) {
     const double local_cells = static_cast<double>(d.local().grown(1).cells());
     const int nlights = static_cast<int>(make_lights(s).size());
     // The light pass's tau per light term, density, the per-band outputs, the renderer's view
-    // volume and image; plus ~40 MiB of libraries and MPI that every rank holds (a 48x48x32
-    // single-scattering run peaks at 53 MiB for ~15 MiB of fields).
-    const double fields = 1 + nlights + 2.0 * s.nbands() + 2.0;
-    MemoryEstimate m{40.0 * 1024 * 1024 + local_cells * 8 * fields + 40.0 * s.camera.width * s.camera.height,
+    // volume (floats: rho and J per band, or with shadowed lights rho and Jd, A, ln T per band,
+    // in groups of 4 with 3 bands; view_volume.h) and image; plus ~40 MiB of libraries and MPI
+    // that every rank holds (a 48x48x32 single-scattering run peaks at 53 MiB for ~15 MiB of
+    // fields).
+    const int nb = s.nbands();
+    const bool split = s.render.mode == RenderMode::scattering && nlights > 0;
+    const double view_floats = split ? (nb == 3 ? 12.0 : 1.0 + 3.0 * nb) : 1.0 + nb;
+    const double fields = 1 + nlights + 2.0 * nb + view_floats / 2.0;
+    // The image: every rank's fragments and the compositing buffers of its rows, and rank 0's
+    // whole image and its outputs; rank 0's share on every rank (the same figure for every rank
+    // keeps `info --ranks N` equal to a run's). A shaded ground adds a fragment to every pixel
+    // that sees it. Peaks measured per pixel (1000² and 2000² images, forty-third session):
+    // slab 71 B on 1 rank, 43 (rank 0) and 30 B (rank 1) on 2; sphere_ground 105, 71 and 35 B.
+    // A flat 40 B had rank 0 of a 2400² slab image at 0.56 of its peak.
+    const bool ground = s.background.kind == BackgroundSpec::Kind::ground;
+    const double pixel_bytes = 40.0 + (ground ? 70.0 : 35.0) / d.size();
+    MemoryEstimate m{40.0 * 1024 * 1024 + local_cells * 8 * fields + pixel_bytes * s.camera.width * s.camera.height,
                      "light pass, render"};
     // A shadowed ground gathers the outer cell layers of the density and of every light's tau
     // on every rank (render/ground.h), and one field's more while it gathers.
