@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
@@ -55,7 +56,8 @@ MemoryEstimate estimate_memory(const Scene& s, const Decomposition& d) {
     // slab 71 B on 1 rank, 43 (rank 0) and 30 B (rank 1) on 2; sphere_ground 105, 71 and 35 B.
     // A flat 40 B had rank 0 of a 2400² slab image at 0.56 of its peak.
     const bool ground = s.background.kind == BackgroundSpec::Kind::ground;
-    const double pixel_bytes = 40.0 + (ground ? 70.0 : 35.0) / d.size();
+    // Whole bytes, so that the estimate stays an integer (its parts then cancel exactly).
+    const double pixel_bytes = 40.0 + std::ceil((ground ? 70.0 : 35.0) / d.size());
     MemoryEstimate m{40.0 * 1024 * 1024 + local_cells * 8 * fields + pixel_bytes * s.camera.width * s.camera.height,
                      "light pass, render"};
     // A shadowed ground gathers the outer cell layers of the density and of every light's tau
