@@ -188,7 +188,7 @@ const std::vector<KeyDoc>& scene_key_docs() {
         {"model.dom.polar", "product: Gauss-Legendre polar points over [-1, 1], even, >= 2"},
         {"model.dom.azimuthal", "product: Chebyshev azimuths, a multiple of 4"},
         {"model.dom.legendre_order",
-         "L: the phase function expanded in Legendre moments 0..L, >= 0"},
+         "L: the phase function expanded in Legendre moments 0..L, 0..64 (S_N integrates them to N - 1)"},
         {"model.dom.delta_m", "delta-M scaling of the truncated phase function (Wiscombe 1977)"},
         {"model.dom.scheme", "step | diamond (diamond difference with negative-flux fix-up)"},
         {"model.dom.iteration",

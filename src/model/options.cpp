@@ -67,7 +67,12 @@ void DomOptions::validate() const {
         throw Error(fmt::format("model.dom.azimuthal = {} must be a multiple of 4 with quadrature = \"product\" "
                                 "(no direction in a coordinate plane)",
                                 azimuthal));
-    if (legendre_order < 0) throw Error("model.dom.legendre_order must be >= 0");
+    // S16, the largest order, integrates the moments to 15 (beyond it a run warns of aliasing);
+    // 1000 was refused as "the grid does not fit in memory" (its (L+1)² moments per cell)
+    // without naming the key (a QA finding).
+    if (legendre_order < 0 || legendre_order > 64)
+        throw Error(fmt::format("model.dom.legendre_order = {} must be in [0, 64] (S{} integrates moments to {})",
+                                legendre_order, order, order - 1));
     if (scheme != "step" && scheme != "diamond")
         throw Error(fmt::format("model.dom.scheme = '{}': allowed are step, diamond", scheme));
     if (iteration != "source" && iteration != "dsa" && iteration != "gmres" && iteration != "gmres-plain")

@@ -331,8 +331,9 @@ void Scene::validate() const {
         const bool ground = background.kind == BackgroundSpec::Kind::ground;
         require(camera_sees_domain(camera, grid) || (ground && camera_sees_ground(camera, grid)),
                 fmt::format("camera.look_at: the camera looks at nothing: the domain [0, {:.4g}] x [0, {:.4g}] x "
-                            "[0, {:.4g}] m{} is outside its field of view (check camera.position, camera.look_at, "
-                            "camera.fov and units)",
+                            "[0, {:.4g}] m{} is outside its field of view, or so small in it that no pixel's centre "
+                            "ray meets it (check camera.position, camera.look_at, camera.fov, camera.resolution and "
+                            "units)",
                             grid.n[0] * h, grid.n[1] * h, grid.n[2] * h, ground ? " and the ground" : ""));
     }
     require_bands(background.color, nbands(), "background.color");

@@ -351,6 +351,10 @@ TEST(SceneErrors, OtherRanges) {
     expect_error(edit("", "[model.diffusion]\nsolver = \"jacobi\""), "jacobi", {"model.diffusion.solver", "pfmg"});
     expect_error(edit("", "[model.dom]\nquadrature = \"product\"\nazimuthal = 6"), "azimuthal = 6",
                  {"model.dom.azimuthal = 6 must be a multiple of 4"});
+    // Named, not "the grid does not fit in memory" ((L + 1)² moments per cell; a QA finding).
+    expect_error(edit("", "[model.dom]\nlegendre_order = 1000"), "legendre_order",
+                 {"model.dom.legendre_order = 1000 must be in [0, 64] (S4 integrates moments to 3)"});
+    EXPECT_NO_THROW(load_scene_string(edit("", "[model.dom]\nlegendre_order = 64"), "ok.toml"));
     expect_error(edit("kind = \"box\"", "kind = \"raw\""), "kind = \"raw\"", {"medium.kind", "needs medium.file"});
     expect_error(edit("kind = \"box\"", "kind = \"raw\"\nfile = \"no_such_density.raw\""), "file =",
                  {"medium.file", "no_such_density.raw", "file not found"});
