@@ -38,7 +38,17 @@ public:
                               2.0 * r2 * std::max(b.size(0), b.size(1)) * static_cast<double>(b.size(2));
         // The source pass holds the first-scatter means it keeps (FirstScatterMeans), one per light.
         const double kept = 8.0 * std::min(nlights, FirstScatterMeans::kMaxKeptLights);
-        return (186.0 + 8.0 * 6 * opt_.k * opt_.k + kept) * static_cast<double>(b.cells()) + 8.0 * p2 * planes;
+        // The maps' rays and their sweep buffers: 1.3 x 8 p² per plane cell, from peaks measured
+        // at p 64 and 128 (16³ sphere, 2 ranks: 5257 B per p² against 4096 counted; the estimate
+        // was 18-21% low at p 100-200, a QA finding). A periodic x or y sweep also keeps the last
+        // K = p / gcd(p, n R) maps of the lateral plane it sweeps (map_sweep.cpp's filling test).
+        const double lateral = r2 * std::max(b.size(0), b.size(1)) * static_cast<double>(b.size(2));
+        long ring = 0;
+        for (int a = 0; a < 2; ++a)
+            if (d.periodic(a))
+                ring = std::max<long>(ring, opt_.p / std::gcd(opt_.p, d.global().size(a) * opt_.refinement));
+        return (186.0 + 8.0 * 6 * opt_.k * opt_.k + kept) * static_cast<double>(b.cells()) +
+               8.0 * p2 * (1.3 * planes + static_cast<double>(ring) * lateral);
     }
     // Before the light pass: what the map sweeps need of the decomposition (and odd p's warning).
     void check_layout(const Decomposition& d) const override { check_decomposition(d); }
