@@ -71,8 +71,9 @@ void toml_differences(const toml::value& a, const toml::value& b, const std::str
 
 // The settings of the problem whose fields A and B hold that differ between their scenes: the
 // optics, the lights, the volume sources and the periodic faces (the medium is compared by its
-// fields), and with images also what they are seen through (camera, background, render). The
-// model, its options, the light method and the outputs may differ: that is what compare is for.
+// fields), and with images also what they are seen through (camera, background, render mode
+// and glow). The model, its options, the light method, the ray caster's step and early
+// termination and the outputs may differ: that is what compare is for.
 // Both scenes are written back by scene_to_toml, so one setting is one text.
 std::vector<std::string> problem_differences(const Scene& a, const Scene& b, bool images) {
     std::istringstream text_a(scene_to_toml(a)), text_b(scene_to_toml(b));
@@ -85,7 +86,9 @@ std::vector<std::string> problem_differences(const Scene& a, const Scene& b, boo
     std::vector<std::string> roots = {"optics", "sources", "grid.periodic"};
     if (!no_sun) roots.push_back("sun");
     if (!no_sky) roots.push_back("sky");
-    if (images) roots.insert(roots.end(), {"camera", "background", "render"});
+    // The render's mode and glow are what the image shows; its step and early termination are
+    // the ray caster's accuracy (like a model's options), its exposure the PNG preview's only.
+    if (images) roots.insert(roots.end(), {"camera", "background", "render.mode", "render.emission_color"});
     std::vector<std::string> out;
     static const toml::value missing;
     for (const std::string& root : roots) {
@@ -290,7 +293,7 @@ void add_compare_command(CLI::App& app) {
         "where B has a standard error s_b (Monte Carlo), s^2 = s_b^2 (+ s_a^2 when A is a Monte Carlo run too), "
         "over the cells where each s is below half the value: about 1 when A agrees with B within the noise. "
         "Warns when the scenes differ in optics, lights, sources or periodic faces (and, with images, in "
-        "camera, background or render): different problems. "
+        "camera, background or render mode): different problems. "
         "Images: RMSE over pixels and RGB, relative error ||a - b|| / ||b||.");
     cmd->add_flag("--json", args->json, "print JSON instead of a table");
     cmd->add_option("--field", args->field, "per-band field to compare: fluence_diffuse | fluence_reduced | "

@@ -33,6 +33,7 @@ run b "${small[@]}" "${one[@]}" --set model.montecarlo.seed=2
 run a2 "${small[@]}" "${two[@]}" --set model.montecarlo.seed=1
 run single "${small[@]}" "${one[@]}" --set 'model.name="single"'  # no standard errors
 run nosun "${small[@]}" "${one[@]}" --set 'model.name="single"' --set sun.enabled=false  # no transmittance_sun
+run a_exposure "${small[@]}" "${one[@]}" --set model.montecarlo.seed=1 --set render.exposure=2 --set render.step=0.25
 A=$tmp/a/nimbus.h5 B=$tmp/b/nimbus.h5 A2=$tmp/a2/nimbus.h5 S=$tmp/single/nimbus.h5
 IA=$tmp/a/nimbus.exr IA2=$tmp/a2/nimbus.exr
 # A's output with band g's diffuse fluence and its standard error zero (as a band without
@@ -108,6 +109,7 @@ json a2_a "$A2" "$A" --image-a "$IA2" --image-b "$IA"
 json a_single "$A" "$S" --field fluence_reduced
 json a_zero "$A" "$Z"
 json zero_zero "$Z" "$Z"
+json a_exposure "$A" "$tmp/a_exposure/nimbus.h5" --image-a "$IA" --image-b "$tmp/a_exposure/nimbus.exr"
 results=$("$py" - "$tmp" <<'PY'
 import json, sys
 import h5py, numpy as np
@@ -161,6 +163,8 @@ check("ab: same problem", load("ab")["same_problem"] is True)
 check("a_single: same problem", load("a_single")["same_problem"] is True)
 diff = load("a_a2")["problem_differences"]
 check(f"a_a2: the lights and background differ ({diff})", diff == ["sun.irradiance", "sky.radiance", "background.color"])
+check("a_exposure: the PNG's exposure and the ray caster's step are no other problem",
+      load("a_exposure")["same_problem"] is True)
 
 # A against itself: all zero.
 aa = load("aa")
