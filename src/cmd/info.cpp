@@ -59,6 +59,7 @@ void info(const RunOptions& opts, int plan_ranks) {
                                 plan_ranks, size, plan_ranks, plan_ranks));
     const bool planning = plan_ranks > 0 && plan_ranks != size;
     const Scene s = load_run_scene(comm, opts);
+    check_output_location(comm, s);  // as a run: info refuses what a run refuses before computing
     run_collective(comm, [&] { make_model(s.model); });  // as a run: is the model in this build?
     // Planning, the density is built on this one process (its process grid is 1x1x1) and the
     // ranks' layout and memory are the plan's.

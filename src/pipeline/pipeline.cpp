@@ -137,39 +137,6 @@ void check_outputs_spare_input(MPI_Comm comm, const Scene& scene) {
     check_collective(comm, msg.empty(), msg);
 }
 
-// The output location's checks that need no folder made, so that `nimbus info` refuses what a
-// run would, before any solve (a QA finding: info passed all three): the path's length, a
-// file where the output folder goes, a folder (or anything but a file) where an output file
-// goes, an output that is the density file. Rank 0 looks; every rank fails together.
-void check_output_location(MPI_Comm comm, const Scene& scene) {
-    if (!(scene.output.hdf5 || scene.output.image)) return;  // a run without outputs opens no file
-    check_output_path_length(comm, scene);
-    int rank = 0;
-    MPI_Comm_rank(comm, &rank);
-    std::string msg;
-    if (rank == 0) {
-        std::error_code ec;
-        const fs::path dir = scene.output.dir;
-        if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) {
-            msg = fmt::format("output folder '{}' cannot be created or is not writable: it is a file", scene.output.dir);
-        } else {
-            std::vector<std::string> outputs;
-            if (scene.output.hdf5) outputs = {".h5", ".xdmf"};
-            if (scene.output.image) outputs.insert(outputs.end(), {".exr", ".png"});
-            for (const std::string& ext : outputs) {
-                const fs::path out = (dir / scene.output.name).string() + ext;
-                const fs::file_status st = fs::symlink_status(out, ec);
-                if (fs::exists(st) && !fs::is_regular_file(st) && !fs::is_symlink(st)) {
-                    msg = fmt::format("cannot write output file '{}': it exists and is not a file", out.string());
-                    break;
-                }
-            }
-        }
-    }
-    check_collective(comm, msg.empty(), msg);
-    check_outputs_spare_input(comm, scene);
-}
-
 // An output this run does not write (output.hdf5 or output.image false) that an earlier run left
 // under the same name stays: said, so that an image and fields of different runs are not taken
 // for one run's. Rank 0 (the output folder exists by now).
@@ -335,6 +302,39 @@ std::vector<std::string> medium_key_kinds(const std::string& key) {
 
 }  // namespace
 
+// The output location's checks that need no folder made, so that `nimbus info` refuses what a
+// run would, before any solve (a QA finding: info passed all three): the path's length, a
+// file where the output folder goes, a folder (or anything but a file) where an output file
+// goes, an output that is the density file. Rank 0 looks; every rank fails together.
+void check_output_location(MPI_Comm comm, const Scene& scene) {
+    if (!(scene.output.hdf5 || scene.output.image)) return;  // a run without outputs opens no file
+    check_output_path_length(comm, scene);
+    int rank = 0;
+    MPI_Comm_rank(comm, &rank);
+    std::string msg;
+    if (rank == 0) {
+        std::error_code ec;
+        const fs::path dir = scene.output.dir;
+        if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) {
+            msg = fmt::format("output folder '{}' cannot be created or is not writable: it is a file", scene.output.dir);
+        } else {
+            std::vector<std::string> outputs;
+            if (scene.output.hdf5) outputs = {".h5", ".xdmf"};
+            if (scene.output.image) outputs.insert(outputs.end(), {".exr", ".png"});
+            for (const std::string& ext : outputs) {
+                const fs::path out = (dir / scene.output.name).string() + ext;
+                const fs::file_status st = fs::symlink_status(out, ec);
+                if (fs::exists(st) && !fs::is_regular_file(st) && !fs::is_symlink(st)) {
+                    msg = fmt::format("cannot write output file '{}': it exists and is not a file", out.string());
+                    break;
+                }
+            }
+        }
+    }
+    check_collective(comm, msg.empty(), msg);
+    check_outputs_spare_input(comm, scene);
+}
+
 Scene load_run_scene(MPI_Comm comm, const RunOptions& opts) {
     Scene scene;
     run_collective(comm, [&] {
@@ -342,7 +342,6 @@ Scene load_run_scene(MPI_Comm comm, const RunOptions& opts) {
                                         : load_scene_file(opts.scene_path, opts.overrides);
         if (!opts.out_dir.empty()) scene.output.dir = opts.out_dir;
     });
-    check_output_location(comm, scene);  // so that `nimbus info` refuses what a run would
     // A --set of another model's option is valid (scene files carry options for several models)
     // but has no effect on this run: say so, since it was typed for this run.
     for (const std::string& o : opts.overrides) {

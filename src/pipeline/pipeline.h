@@ -30,6 +30,11 @@ struct RunResult {
 // Loads the scene of opts (collective: every rank gets the same scene or the same Error).
 Scene load_run_scene(MPI_Comm comm, const RunOptions& opts);
 
+// Collective. The output location's checks that need no folder made (path length, a file
+// where the folder goes, a folder where an output file goes, an output that is the density
+// file): run_pipeline makes them, and `nimbus info` calls them to refuse what a run would.
+void check_output_location(MPI_Comm comm, const Scene& scene);
+
 // Collective over comm. Throws Error (on every rank) on bad input, a failed solve or a failed
 // write; a failed run leaves no output file under its final name and no temporary (all
 // outputs are written under temporary names and renamed together at the end: OutputFiles).
