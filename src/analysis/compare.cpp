@@ -24,13 +24,15 @@ FieldError field_error(const std::vector<double>& a, const std::vector<double>& 
     // Whether a run's standard error s at a cell of value v is usable (kZRelStderr).
     auto usable = [](double s, double v) { return s > 0 && s < kZRelStderr * std::abs(v); };
     FieldError e;
-    double diff2 = 0.0, b2 = 0.0, max_b = 0.0, z2 = 0.0;
+    double diff2 = 0.0, b2 = 0.0, max_b = 0.0, z2 = 0.0, sum_a = 0.0, sum_b = 0.0;
     std::size_t nz = 0;
     for (std::size_t c = 0; c < b.size(); ++c) {
         if (!(density[c] > 0)) continue;
         const double d = a[c] - b[c];
         diff2 += d * d;
         b2 += b[c] * b[c];
+        sum_a += a[c];
+        sum_b += b[c];
         e.max_abs = std::max(e.max_abs, std::abs(d));
         max_b = std::max(max_b, std::abs(b[c]));
         ++e.cells;
@@ -46,8 +48,9 @@ FieldError field_error(const std::vector<double>& a, const std::vector<double>& 
     e.abs_l2 = std::sqrt(diff2);
     if (stderr_b != nullptr) e.rms_z = nz > 0 ? std::sqrt(z2 / static_cast<double>(nz)) : 0.0;
     const bool identical = e.cells > 0 && e.max_abs == 0.0;
-    if (identical) return e;  // every metric 0, also over a zero reference
     constexpr double undefined = std::numeric_limits<double>::quiet_NaN();
+    e.sum_ratio = identical ? 1.0 : sum_b != 0 ? sum_a / sum_b : undefined;
+    if (identical) return e;  // every error 0, also over a zero reference
     if (e.cells == 0) {
         e.rel_l2 = e.max_rel = undefined;
         if (stderr_b != nullptr) e.rms_z = undefined;
@@ -81,13 +84,16 @@ ImageError image_error(const std::vector<float>& a, const std::vector<float>& b)
         throw Error(fmt::format("compare: images differ in size ({} and {} values)", a.size(), b.size()));
     ImageError e;
     e.pixels = a.size() / 4;
-    double diff2 = 0.0, b2 = 0.0;
+    double diff2 = 0.0, b2 = 0.0, sum_a = 0.0, sum_b = 0.0;
     for (std::size_t i = 0; i < a.size(); ++i) {
         if (i % 4 == 3) continue;
         const double d = static_cast<double>(a[i]) - b[i];
         diff2 += d * d;
         b2 += static_cast<double>(b[i]) * b[i];
+        sum_a += a[i];
+        sum_b += b[i];
     }
+    e.mean_ratio = diff2 == 0 ? 1.0 : sum_b != 0 ? sum_a / sum_b : std::numeric_limits<double>::quiet_NaN();
     e.rmse = e.pixels > 0 ? std::sqrt(diff2 / (3.0 * static_cast<double>(e.pixels))) : 0.0;
     if (b2 > 0 || diff2 == 0) {
         e.rel_error = b2 > 0 ? std::sqrt(diff2) / std::sqrt(b2) : 0.0;

@@ -13,7 +13,11 @@
 //                                                       reached has s = 0, and one that a few
 //                                                       batches reached has s ≈ its value, an
 //                                                       estimate so rough that its z ran to 367
-//   image RMSE        sqrt(mean over pixels and RGB of (a - b)²), relative: ||a - b|| / ||b||
+//   sum ratio         Σ a / Σ b                         over the same cells: the totals' ratio
+//                                                       (equal cells: total power), the bias that
+//                                                       the L2 error mixes with the pattern's
+//   image RMSE        sqrt(mean over pixels and RGB of (a - b)²), relative: ||a - b|| / ||b||;
+//                     mean ratio Σ a / Σ b over pixels and RGB (brightness)
 //   same medium       max |rho_a - rho_b| / max |rho_b| over all cells <= kSameMediumTolerance
 //
 // A metric whose denominator is zero is undefined, not infinite: it is NaN (`nimbus compare`
@@ -36,6 +40,7 @@ struct FieldError {
     double norm_b = 0.0;        // ||b||_2 over those cells
     double abs_l2 = 0.0;        // ||a - b||_2 over those cells (the field's units)
     double max_abs = 0.0;       // max |a - b| over those cells
+    double sum_ratio = 0.0;     // Σ a / Σ b over those cells; NaN when Σ b = 0 (unless a = b)
     std::string undefined;      // empty, or why the NaN metrics are undefined
 };
 
@@ -67,7 +72,8 @@ inline constexpr double kSameMediumTolerance = 1e-6;
 
 struct ImageError {
     double rmse = 0.0;
-    double rel_error = 0.0;  // NaN when undefined
+    double rel_error = 0.0;   // NaN when undefined
+    double mean_ratio = 0.0;  // Σ a / Σ b over pixels and RGB; NaN when b is black (unless a = b)
     std::size_t pixels = 0;
     std::string undefined;  // empty, or why rel_error is undefined
 };

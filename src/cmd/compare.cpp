@@ -206,8 +206,9 @@ nlohmann::json compare_runs(const CompareArgs& args) {
         const FieldError e = field_error(fa.values, fb.values, density.values, with_stderr ? &stderr_b : nullptr,
                                          a_stderr ? &stderr_a : nullptr);
         // NaN (undefined) is written as null.
-        nlohmann::json j = {{"band", band},     {"rel_l2", e.rel_l2}, {"max_rel", e.max_rel},
-                            {"cells", e.cells}, {"abs_l2", e.abs_l2}, {"max_abs", e.max_abs}};
+        nlohmann::json j = {{"band", band},           {"rel_l2", e.rel_l2}, {"max_rel", e.max_rel},
+                            {"sum_ratio", e.sum_ratio}, {"cells", e.cells},   {"abs_l2", e.abs_l2},
+                            {"max_abs", e.max_abs}};
         if (with_stderr) j["rms_z"] = e.rms_z, j["z_cells"] = e.z_cells, j["z_with_stderr_a"] = a_stderr;
         if (!e.undefined.empty()) j["undefined"] = e.undefined;
         out["bands"].push_back(j);
@@ -222,7 +223,8 @@ nlohmann::json compare_runs(const CompareArgs& args) {
         require_finite(ia.rgba, args.image_a, "the image");
         require_finite(ib.rgba, args.image_b, "the image");
         const ImageError e = image_error(ia.rgba, ib.rgba);
-        out["image"] = {{"rmse", e.rmse}, {"rel_error", e.rel_error}, {"pixels", e.pixels}};
+        out["image"] = {{"rmse", e.rmse}, {"rel_error", e.rel_error}, {"mean_ratio", e.mean_ratio},
+                        {"pixels", e.pixels}};
         if (!e.undefined.empty()) out["image"]["undefined"] = e.undefined;
     }
     return out;
@@ -238,12 +240,12 @@ void print(const std::string& line) { std::fputs(line.c_str(), stdout); }
 void print_table(const nlohmann::json& r) {
     print(fmt::format("{} of {} against reference {}\n", r["field"].get<std::string>(),
                       r["a"].get<std::string>(), r["b"].get<std::string>()));
-    print(fmt::format("{:<10} {:>12} {:>12} {:>10} {:>10}\n", "band", "rel L2", "max rel", "RMS z",
-                      "cells"));
+    print(fmt::format("{:<10} {:>12} {:>12} {:>10} {:>10} {:>10}\n", "band", "rel L2", "max rel", "sum A/B",
+                      "RMS z", "cells"));
     for (const auto& b : r["bands"])
-        print(fmt::format("{:<10} {:>12} {:>12} {:>10} {:>10}\n", b["band"].get<std::string>(),
+        print(fmt::format("{:<10} {:>12} {:>12} {:>10} {:>10} {:>10}\n", b["band"].get<std::string>(),
                           metric(b["rel_l2"].get<double>(), "{:.4e}"),
-                          metric(b["max_rel"].get<double>(), "{:.4e}"),
+                          metric(b["max_rel"].get<double>(), "{:.4e}"), metric(b["sum_ratio"].get<double>(), "{:.4f}"),
                           b.contains("rms_z") ? metric(b["rms_z"].get<double>(), "{:.3f}") : "-",
                           b["cells"].get<std::size_t>()));
     // RMS z leaves out the cells without a usable standard error: say how many.
@@ -268,8 +270,9 @@ void print_table(const nlohmann::json& r) {
         const std::string rel = im.contains("undefined")
                                     ? fmt::format("undefined ({})", im["undefined"].get<std::string>())
                                     : metric(im["rel_error"].get<double>(), "{:.4e}");
-        print(fmt::format("image: RMSE {:.4e}, relative error {} over {} pixels\n",
-                          im["rmse"].get<double>(), rel, im["pixels"].get<std::size_t>()));
+        print(fmt::format("image: RMSE {:.4e}, relative error {}, brightness A/B {} over {} pixels\n",
+                          im["rmse"].get<double>(), rel, metric(im["mean_ratio"].get<double>(), "{:.4f}"),
+                          im["pixels"].get<std::size_t>()));
     }
 }
 

@@ -72,15 +72,15 @@ out=$(nim compare "$A" "$B" --image-a "$IA" --image-b "$IA2" 2>&1); code=$?
 echo "$out" > "$tmp/ab_table.txt"  # its RMS z note is checked against the JSON below
 check "table exits 0 (exit $code)" [ $code -eq 0 ]
 check "table header once" [ "$(echo "$out" | grep -c "fluence_diffuse of .* against reference")" -eq 1 ]
-check "table columns" bash -c 'echo "$1" | grep -q "band *rel L2 *max rel *RMS z *cells"' _ "$out"
+check "table columns" bash -c 'echo "$1" | grep -q "band *rel L2 *max rel *sum A/B *RMS z *cells"' _ "$out"
 for band in r g b; do
-  check "table row $band" bash -c 'echo "$1" | grep -Eq "^$2 +[0-9.]+e[-+][0-9]+ +[0-9.]+e[-+][0-9]+ +[0-9.]+ +[0-9]+$"' _ "$out" "$band"
+  check "table row $band" bash -c 'echo "$1" | grep -Eq "^$2 +[0-9.]+e[-+][0-9]+ +[0-9.]+e[-+][0-9]+ +[0-9]\.[0-9]{4} +[0-9.]+ +[0-9]+$"' _ "$out" "$band"
 done
-check "table image line" bash -c 'echo "$1" | grep -Eq "^image: RMSE [0-9.]+e[-+][0-9]+, relative error [0-9.]+e[-+][0-9]+ over 640 pixels$"' _ "$out"
+check "table image line" bash -c 'echo "$1" | grep -Eq "^image: RMSE [0-9.]+e[-+][0-9]+, relative error [0-9.]+e[-+][0-9]+, brightness A/B [0-9]\.[0-9]{4} over 640 pixels$"' _ "$out"
 # Without a standard error in the reference the RMS z column shows "-" (here another field:
 # the unscattered fluence of the same light pass).
 out=$(nim compare "$A" "$S" --field fluence_reduced 2>&1)
-check "no stderr: RMS z '-'" bash -c 'echo "$1" | grep -Eq "^r +[0-9.]+e[-+][0-9]+ +[0-9.]+e[-+][0-9]+ +- +[0-9]+$"' _ "$out"
+check "no stderr: RMS z '-'" bash -c 'echo "$1" | grep -Eq "^r +[0-9.]+e[-+][0-9]+ +[0-9.]+e[-+][0-9]+ +[0-9]\.[0-9]{4} +- +[0-9]+$"' _ "$out"
 
 # transmittance_sun exists only for scenes with a sun: the error says so.
 out=$(nim compare "$tmp/nosun/nimbus.h5" "$S" --field transmittance_sun 2>&1); code=$?
@@ -91,8 +91,8 @@ check "no sun: the reason" bash -c 'echo "$1" | grep -q "has no fields/transmitt
 # difference; the other bands (A against itself) 0; no inf or nan anywhere.
 out=$(nim compare "$A" "$Z" 2>&1); code=$?
 check "zero reference: exits 0 (exit $code)" [ $code -eq 0 ]
-check "zero reference: g undefined" bash -c 'echo "$1" | grep -Eq "^g +undefined +undefined +undefined +[0-9]+$"' _ "$out"
-check "zero reference: r defined" bash -c 'echo "$1" | grep -Eq "^r +0\.0000e\+00 +0\.0000e\+00 +0\.000 +[0-9]+$"' _ "$out"
+check "zero reference: g undefined" bash -c 'echo "$1" | grep -Eq "^g +undefined +undefined +undefined +undefined +[0-9]+$"' _ "$out"
+check "zero reference: r defined" bash -c 'echo "$1" | grep -Eq "^r +0\.0000e\+00 +0\.0000e\+00 +1\.0000 +0\.000 +[0-9]+$"' _ "$out"
 check "zero reference: why, and |a - b|" bash -c 'echo "$1" | grep -Eq "^g: undefined \(the reference is zero on every cell compared\); \|a - b\| over the [0-9]+ cells: L2 [1-9][0-9.]*e[-+][0-9]+, max [1-9][0-9.]*e[-+][0-9]+$"' _ "$out"
 check "zero reference: no inf or nan" bash -c '! echo "$1" | grep -Eqiw "inf|nan"' _ "$out"
 
@@ -142,6 +142,7 @@ with h5py.File(f"{tmp}/a/nimbus.h5") as fa, h5py.File(f"{tmp}/b/nimbus.h5") as f
         check(f"ab {band}: cells", j["cells"] == int((rho > 0).sum()) > 0)
         check(f"ab {band}: rel_l2 {j['rel_l2']}", close(j["rel_l2"], np.linalg.norm(a - b) / np.linalg.norm(b)))
         check(f"ab {band}: max_rel {j['max_rel']}", close(j["max_rel"], np.abs(a - b).max() / np.abs(b).max()))
+        check(f"ab {band}: sum_ratio {j['sum_ratio']}", close(j["sum_ratio"], a.sum() / b.sum(), 1e-9))
         # Two Monte Carlo runs: both standard errors count, over the cells where each is above 0
         # and below half its value; the table says so when that is not all of them.
         use = (s > 0) & (s < 0.5 * np.abs(b)) & (sa > 0) & (sa < 0.5 * np.abs(a))
@@ -170,7 +171,9 @@ check("a_exposure: the PNG's exposure and the ray caster's step are no other pro
 aa = load("aa")
 for band, j in bands(aa).items():
     check(f"aa {band}: zero", j["rel_l2"] == 0 and j["max_rel"] == 0 and j["rms_z"] == 0)
-check("aa image: zero over 640 pixels", aa["image"] == {"rmse": 0.0, "rel_error": 0.0, "pixels": 640})
+check("aa image: zero over 640 pixels", aa["image"] == {"rmse": 0.0, "rel_error": 0.0, "mean_ratio": 1.0, "pixels": 640})
+for band, j in bands(aa).items():
+    check(f"aa {band}: sum ratio 1", j["sum_ratio"] == 1.0)
 
 # A against 2A: |a - 2a| / |2a| = 0.5; 2A against A: 1. RMS z is the same both ways (both
 # standard errors count: z = -a / sqrt(s² + 4 s²) against a / sqrt(4 s² + s²)); the image
@@ -180,9 +183,12 @@ for band in "rgb":
     jx, jy = bands(x)[band], bands(y)[band]
     check(f"a_a2 {band}: 0.5", close(jx["rel_l2"], 0.5) and close(jx["max_rel"], 0.5))
     check(f"a2_a {band}: 1", close(jy["rel_l2"], 1.0) and close(jy["max_rel"], 1.0))
+    check(f"a_a2, a2_a {band}: sum ratios 0.5, 2", close(jx["sum_ratio"], 0.5) and close(jy["sum_ratio"], 2.0))
     check(f"a_a2 {band}: rms_z symmetric", close(jx["rms_z"], jy["rms_z"]) and jy["rms_z"] > 0)
 check(f"a_a2 image: rel_error 0.5 ({x['image']['rel_error']})", close(x["image"]["rel_error"], 0.5, 1e-6))
 check(f"a2_a image: rel_error 1 ({y['image']['rel_error']})", close(y["image"]["rel_error"], 1.0, 1e-6))
+check(f"image brightness 0.5 and 2 ({x['image']['mean_ratio']}, {y['image']['mean_ratio']})",
+      close(x["image"]["mean_ratio"], 0.5, 1e-6) and close(y["image"]["mean_ratio"], 2.0, 1e-6))
 check("image rmse symmetric, > 0", x["image"]["rmse"] > 0 and close(x["image"]["rmse"], y["image"]["rmse"]))
 check("image pixels", x["image"]["pixels"] == 640)
 
@@ -200,7 +206,7 @@ with h5py.File(f"{tmp}/a/nimbus.h5") as fa:
     rho = fa["fields/density"][...].astype(float)
     a = fa["fields/fluence_diffuse/g"][...].astype(float)[rho > 0]
 g = z["g"]
-check(f"a_zero g: null {g}", g["rel_l2"] is None and g["max_rel"] is None and g["rms_z"] is None)
+check(f"a_zero g: null {g}", g["rel_l2"] is None and g["max_rel"] is None and g["rms_z"] is None and g["sum_ratio"] is None)
 check(f"a_zero g: reason {g.get('undefined')}", g.get("undefined") == "the reference is zero on every cell compared")
 check(f"a_zero g: abs_l2 {g['abs_l2']}", g["abs_l2"] > 0 and close(g["abs_l2"], np.linalg.norm(a)))
 check(f"a_zero g: max_abs {g['max_abs']}", close(g["max_abs"], np.abs(a).max()))
