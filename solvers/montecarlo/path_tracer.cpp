@@ -158,7 +158,11 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
             const std::vector<int>& bands = groups[gi].bands;
             const int nbg = static_cast<int>(bands.size());
             PathRng rng(opt.seed, 0x80000000u + static_cast<std::uint32_t>(bands[0]), static_cast<std::uint64_t>(si));
-            const GridView g = voxels[gi].view(periodic);
+            // The camera sees the domain's one tile, as the ray caster does: its ray leaves at
+            // the box's faces, periodic or not (wrapping, a horizontal view ray through a
+            // periodic slab never left the medium). Scattered light lives in the periodic
+            // medium: from the first collision on, paths and shadow rays wrap.
+            const GridView g = voxels[gi].view(periodic), tile = voxels[gi].view({false, false, false});
             const BandOptics& o = groups[gi].optics;
             const Vec3 dir = cam.direction(px + rng.uniform(), py + rng.uniform());
             double L[kMaxBands]{};
@@ -174,15 +178,16 @@ Image path_trace_image(const SolveContext& ctx, const MonteCarloOptions& opt) {
                 // the mean over bands); one ray through the pixel centre, as before, gave an
                 // opaque alpha to a pixel whose samples mostly saw the background (QA).
                 PathState view = s;
-                alpha[pix] += (1.0 - std::exp(-optical_depth(g, view))) * nbg / (static_cast<double>(nb) * spp);
+                alpha[pix] += (1.0 - std::exp(-optical_depth(tile, view))) * nbg / (static_cast<double>(nb) * spp);
                 double beta = 1.0;
                 bool scattered = false;
                 for (;;) {
                     // Emission seen along the flight (track length: the flight reaches x with
                     // probability T(x), so sum q len = the expected integral of q T).
                     const double tau = -std::log(rng.uniform());
-                    const int face = q_h.empty() ? walk_optical_depth(g, s, tau, [](std::int64_t, double) {})
-                                                 : walk_optical_depth(g, s, tau, [&](std::int64_t idx, double len) {
+                    const GridView& walk = scattered ? g : tile;
+                    const int face = q_h.empty() ? walk_optical_depth(walk, s, tau, [](std::int64_t, double) {})
+                                                 : walk_optical_depth(walk, s, tau, [&](std::int64_t idx, double len) {
                                                        for (int q = 0; q < nbg; ++q)
                                                            L[q] += beta * q_h[static_cast<size_t>(bands[static_cast<size_t>(q)])]
                                                                              [static_cast<size_t>(idx)] * len;

@@ -1,9 +1,9 @@
 // The Monte Carlo model through the ScatteringModel interface: solve() fills fluence and its
 // standard error and reports its figures of merit; render() path-traces the camera image
 // (pure absorber: each sample sees the background with probability T, so the pixel mean is
-// background x (1 - alpha); with a volume source over a uniform absorber it adds
-// q (1 - T) / kappa, and with scattering the source's image adds to the sun's sample by
-// sample); the image does not depend on the rank count.
+// background x (1 - alpha), also through one tile of a periodic domain; with a volume source
+// over a uniform absorber it adds q (1 - T) / kappa, and with scattering the source's image
+// adds to the sun's sample by sample); the image does not depend on the rank count.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -23,7 +23,9 @@ struct World {
     LightTransport light;
     Report report;
     // uniform: density 0.6 everywhere (else 0.5-0.7 by cell); h: cell edge, m
-    World(MPI_Comm comm, double albedo, bool uniform = false, double h = 1.0) : d(comm, {8, 8, 8}) {
+    World(MPI_Comm comm, double albedo, bool uniform = false, double h = 1.0,
+          std::array<bool, 3> periodic = {false, false, false})
+        : d(comm, {8, 8, 8}, {0, 0, 0}, periodic) {
         scene.grid.n = {8, 8, 8};
         scene.grid.cell_size = h;
         scene.camera.position = {0.5, 0.5, 3.0};
@@ -106,6 +108,21 @@ TEST(MonteCarloModel, AbsorberImageIsBackgroundTimesTransmittance) {
             EXPECT_GT(img.pixel(x, y)[3], 0.7);  // tau = 0.3 * (0.5..0.7) * 8 ≈ 1.44 straight down: T ≈ 0.24
             EXPECT_LT(img.pixel(x, y)[3], 0.8);
         }
+}
+
+// The camera sees one tile of a periodic domain, as the ray caster does: a view ray along x
+// through a uniform absorber periodic in x and y leaves after the tile's 8 cells (alpha =
+// 1 - e^{-8 kappa h}) instead of wrapping for ever (alpha 1, a black pixel).
+TEST(MonteCarloModel, CameraRaysSeeOneTileOfAPeriodicDomain) {
+    World w(MPI_COMM_WORLD, 0.0, true, 1.0, {true, true, false});
+    w.scene.camera.position = {-3.0, 0.5, 0.5};
+    w.scene.camera.look_at = {0.5, 0.5, 0.5};
+    w.scene.camera.up = {0, 0, 1};
+    const double kappa = 0.6 * 0.3;
+    const Image img = check_image_z(w, [](double alpha) { return 0.5 * (1.0 - alpha); });
+    if (test::world_rank() != 0) return;
+    for (int y = 0; y < 4; ++y)
+        for (int x = 0; x < 6; ++x) EXPECT_NEAR(1.0 - img.pixel(x, y)[3], std::exp(-kappa * 8), 1e-3);
 }
 
 // Pure absorber of uniform kappa with a source over the whole domain: along a chord of length
