@@ -107,6 +107,7 @@ public:
         const Medium& m = ctx.medium;
         warn_if_cells_thick(d, m);
         out = DiffuseSolution{};
+        out.closure = RadianceClosure::p1;  // the renderer draws the model's own P1 radiance
         for (int b = 0; b < m.nbands(); ++b) {
             out.fluence.emplace_back(d.local(), 1, 1, 0.0);
             out.flux.emplace_back(d.local(), 1, 3, 0.0);

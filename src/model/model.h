@@ -3,8 +3,10 @@
 // fluence has the same meaning everywhere:
 //   fluence_diffuse = ∫ I_d dw = 4π U   (W/m², per band, on the rank's owned box)
 // The renderer evaluates the in-scattered radiance toward w from it (DESIGN §1):
-//   J(x, w) = kappa a [ fluence/(4π) + (3 g / 4π) F·w + Σ_lights E0 T p(w·w_light) ]
-// where the flux F term is used only when the model provides flux.
+//   J(x, w) = kappa a [ ∫ p I_d dw' + Σ_lights E0 T p(w·w_light) ]
+// with ∫ p I_d dw' = fluence/(4π) where the model gives no flux, and otherwise rebuilt from the
+// fluence and the flux F by the model's closure (src/physics/radiance_closure.h): P1's
+// fluence/(4π) + (3 g / 4π) F·w for diffusion, a realizable shape for transport models.
 #pragma once
 
 #include <array>
@@ -20,6 +22,7 @@
 #include "src/core/report.h"
 #include "src/model/options.h"
 #include "src/physics/lights.h"
+#include "src/physics/radiance_closure.h"
 #include "src/render/image.h"
 #include "src/scene/medium.h"
 #include "src/scene/scene.h"
@@ -167,6 +170,10 @@ struct DiffuseSolution {
     std::vector<Field<double>> fluence;         // per band, 4πU, W/m², owned + 1 ghost
     std::vector<Field<double>> flux;            // per band, F (3 components), or empty
     std::vector<Field<double>> fluence_stderr;  // per band standard error (Monte Carlo), or empty
+    // The angular shape the renderer gives the radiance between fluence and flux: the P1
+    // radiance for the diffusion model (its own ansatz), the realizable closure for the moments
+    // of a transport solution (the default).
+    RadianceClosure closure = RadianceClosure::realizable;
 };
 
 // fluence_diffuse below -share of its band's largest value (the exact answer is never negative;

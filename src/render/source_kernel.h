@@ -3,9 +3,9 @@
 //
 //   emission, emission_absorption (Max 1995 §3 eq. 4, §4.2):  J = C kappa
 //   single_unshadowed (§5 eq. 9-10):      J = kappa a Σ_l E0_l p(mu_l)
-//   scattering (§6 eq. 13-14 + DESIGN §1): J = kappa a [Σ_l E0_l T_l p(mu_l) + fluence/(4π)
-//                                                        + (3 g / 4π) F·w_out] + q
-//   (the F term limited so that the diffuse part stays >= 0 where U >= 0, diffuse_inscatter below)
+//   scattering (§6 eq. 13-14 + DESIGN §1): J = kappa a [Σ_l E0_l T_l p(mu_l) + ∫ p I_d dw'] + q
+//   with ∫ p I_d dw' = fluence/(4π) + (3 g / 4π) F·w_out for P1 radiance, rebuilt from fluence
+//   and F by the model's closure (diffuse_inscatter below)
 //   (both scattering modes) q = power / 4π, the isotropic emission of the scene's volume
 //   sources in the cell ([[sources]], src/scene/emission.h; 0 where rho = 0)
 // with w_out the unit direction toward the camera (the radiance's travel direction, -d for a
@@ -19,6 +19,7 @@
 
 #include "src/core/vec3.h"
 #include "src/physics/phase.h"
+#include "src/physics/radiance_closure.h"
 
 namespace nimbus {
 
@@ -28,20 +29,16 @@ inline double emission_source(double C, double kappa) { return C * kappa; }
 // Radiance source of isotropic volume emission of `power` W/m³ (all directions): q = power / 4π.
 inline double emission_radiance(double power) { return power * (0.25 / std::numbers::pi); }
 
-// The P1 diffuse field scattered toward w_out (DESIGN §1): ∫ p I_d dw' = U + (3g/4π) F·w_out,
-// with U = fluence/(4π). `has_flux` false drops the F term. Where P1 fails (a flux larger than
-// a non-negative in-scatter allows, (3|g|/4π)|F| > U: lit edges of a thick cloud under diffusion,
-// DOM's truncated moments) the F term is scaled down to that bound, so the in-scatter is >= 0 in
-// every direction wherever U >= 0 (a negative U stays negative) and its mean over directions stays U (a negative J used to give negative
-// pixels: -0.049 against a peak of 0.089 in a QA view of a diffusion cloud).
-inline double diffuse_inscatter(double fluence, double g, bool has_flux, const Vec3& F,
-                                const Vec3& w_out) {
-    constexpr double inv_4pi = 0.25 / std::numbers::pi;
-    const double U = fluence * inv_4pi;
-    if (!has_flux) return U;
-    const double amplitude = 3.0 * std::abs(g) * inv_4pi * norm(F), limit = std::max(U, 0.0);
-    const double scale = amplitude > limit ? limit / amplitude : 1.0;
-    return U + scale * 3.0 * g * inv_4pi * dot(F, w_out);
+// The diffuse field scattered toward w_out, ∫ p I_d dw' (DESIGN §1), U = fluence/(4π) alone
+// without a flux (`has_flux` false), else from U and F by the model's closure
+// (src/physics/radiance_closure.h): diffusion's own P1 radiance, U + (3g/4π) F·w_out with its F
+// term limited so that it stays >= 0 wherever U >= 0 (a negative J gave negative pixels: -0.049
+// against a peak of 0.089 in a QA view of a diffusion cloud), or the realizable shape of a
+// transport solution's moments. Either way its mean over directions is U.
+inline double diffuse_inscatter(double fluence, double g, bool has_flux, const Vec3& F, const Vec3& w_out,
+                                RadianceClosure closure) {
+    if (!has_flux) return fluence * (0.25 / std::numbers::pi);
+    return closure_inscatter(closure, fluence, g, F, w_out);
 }
 
 }  // namespace nimbus

@@ -216,7 +216,7 @@ ViewVolume build_view_volume(const RenderInputs& in, const Decomposition& d, con
                         const Field<double>& f = in.diffuse.flux[bb];
                         F = {f(i, j, k, 0), f(i, j, k, 1), f(i, j, k, 2)};
                     }
-                    J[bb] += diffuse_inscatter(in.diffuse.fluence[bb](i, j, k), o.g, flux, F, w_out);
+                    J[bb] += diffuse_inscatter(in.diffuse.fluence[bb](i, j, k), o.g, flux, F, w_out, in.diffuse.closure);
                 }
                 J[bb] *= rho * o.sigma_t * o.albedo;
                 if (!sources.empty()) J[bb] += emission_radiance(emitted_power(sources, m.rho, b, i, j, k, src_cell));
