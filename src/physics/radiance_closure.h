@@ -25,8 +25,8 @@
 //               B alone was too dark seen against the beam and too bright along it, H alone
 //               too dark across a bright cloud's diffusive interior; the mix was within 0.17-0.35
 //               of the path tracer's image on a thin g = 0.85 sphere where the P1 shape was
-//               0.38-1.12 off, and as close as P1 on thick clouds (solvers/dom/README.md has
-//               the table).
+//               0.38-1.12 off, and as close as P1 on thick clouds (the table: README, "Scene
+//               files").
 #pragma once
 
 #include <algorithm>
