@@ -6,10 +6,17 @@
 
 namespace nimbus {
 
+// Seconds left of a phase of `total` units with `done` complete at time `now`: at the rate since
+// the first report (`first_done` units at `first_time`) once there is one more unit, else at the
+// mean rate since `start`; 0 before any unit is done.
+double progress_eta(double done, double total, double first_done, double first_time, double start, double now);
+
 class Progress {
 public:
     Progress(std::string what, double total, bool speaker, double quiet = 2.0, double interval = 2.0);
-    // Reports that `done` units of `total` are complete (not collective).
+    // Reports that `done` units of `total` are complete (not collective). The ETA is the rate
+    // since the first call, which carries the phase's set-up (LPM's first map sweep took the
+    // source's set-up with it and the first line said 1.9x the time left), from the second on.
     void update(double done);
     // The same with the caller's ETA, for phases that may stop before `total` (a time budget,
     // a target error, a tolerance): `eta` seconds to the stop named by `until` ("time budget",
@@ -22,6 +29,7 @@ private:
     std::string what_;
     double total_, start_, last_;
     bool speaker_, spoke_ = false;
+    double first_done_ = -1.0, first_time_ = 0.0;  // the first update(done)'s units and time
     double quiet_, interval_;
 };
 
