@@ -9,19 +9,23 @@
 
 namespace nimbus::mc {
 
-KeptBatches::KeptBatches(const ReplicatedProblem& p, bool tally_reduced)
+KeptBatches::KeptBatches(const ReplicatedProblem& p, const ForwardSettings& settings)
     : sum(static_cast<size_t>(p.padded_cells * p.nb), 0.0), sumsq(sum.size(), 0.0) {
-    if (tally_reduced) rsum.assign(sum.size(), 0.0), rsumsq.assign(sum.size(), 0.0);
+    if (settings.tally_reduced) rsum.assign(sum.size(), 0.0), rsumsq.assign(sum.size(), 0.0);
+    if (settings.tally_flux) fsum.assign(3 * sum.size(), 0.0);
 }
 
 BatchInFlight::BatchInFlight(ReplicatedProblem& p, const MonteCarloOptions& opt, const ForwardSettings& settings,
-                             bool lanes)
-    : p_(p), opt_(opt), settings_(settings),
+                             bool lanes, KeptBatches& kept)
+    : p_(p), opt_(opt), settings_(settings), kept_(kept),
       tally_(static_cast<size_t>(p.padded_cells) * p.nb, 0.0),
       counters_(static_cast<size_t>(p.nb), Counters{}),
       lanes_(lanes && !settings.forced_first_collision && !settings.tally_reduced) {
     if (settings.tally_reduced)
         rtally_.assign(tally_.size(), 0.0), reduced_acc_.assign(static_cast<size_t>(p.padded_cells), 0.0);
+    if (settings.tally_flux) flux_acc_.assign(4 * static_cast<size_t>(p.padded_cells), 0.0);
+    // Batches are dropped only at a time budget or a target error (forward.h).
+    if (settings.tally_flux && (opt.time_budget > 0 || opt.target_rel_error > 0)) flux_.assign(3 * tally_.size(), 0.0);
     const auto cells = static_cast<size_t>(std::min<std::int64_t>(p.padded_cells, 1 << 20));
     light_touched_.reserve(cells);
     touched_.reserve(cells);
@@ -101,11 +105,12 @@ void BatchInFlight::trace(int batch, int layout, std::int64_t k0, std::int64_t k
             LightTerm term{emitter ? nullptr : &p_.entry[l], emitter ? Vec3{0, 0, -1} : p_.lights[l].w, emitter,
                            static_cast<std::uint32_t>(l)};
             term.tally_scale = alpha == 0.0 ? 1.0 : alpha;
+            double* const flux = settings_.tally_flux ? flux_acc_.data() : nullptr;
             if (lanes_)
-                trace_photons_lanes(grid, po, term, opt_.seed, from, to, light_touched_, pt);
+                trace_photons_lanes(grid, po, term, opt_.seed, from, to, light_touched_, pt, flux);
             else
                 trace_photons(grid, po, term, opt_.seed, from, to, settings_.forced_first_collision,
-                              settings_.tally_reduced ? reduced_acc_.data() : nullptr, light_touched_, pt);
+                              settings_.tally_reduced ? reduced_acc_.data() : nullptr, light_touched_, pt, flux);
             if (gi == 0) photons_ += to - from;  // a photon traced once per optics group
             collisions_ += pt.collisions;
             segments_ += pt.segments;
@@ -155,6 +160,15 @@ void BatchInFlight::fold_class(FoldClass& fc, const GridView& grid, const int* b
         const double v = std::exchange(grid.voxel[idx].tally, 0.0);
         diffuse_track += v;
         if (v != 0.0) fold(tally_, idx, v);
+        if (!flux_acc_.empty() && v != 0.0) {  // a cell with a collision has fluence: listed here
+            double* acc = flux_acc_.data() + 4 * idx;
+            if (acc[0] != 0.0 || acc[1] != 0.0 || acc[2] != 0.0) {
+                double* f = (flux_.empty() ? kept_.fsum.data() : flux_.data()) + 3 * idx * nb;
+                for (int q = 0; q < nbg; ++q)
+                    for (int a = 0; a < 3; ++a) f[3 * band[q] + a] += acc[a] * fc.scale[q];
+                acc[0] = acc[1] = acc[2] = 0.0;
+            }
+        }
         if (settings_.tally_reduced) {
             const double r = std::exchange(reduced_acc_[static_cast<size_t>(idx)], 0.0);
             if (r != 0.0) fold(rtally_, idx, r);
@@ -164,7 +178,8 @@ void BatchInFlight::fold_class(FoldClass& fc, const GridView& grid, const int* b
     for (int q = 0; q < nbg; ++q) counters_[static_cast<size_t>(band[q])][diffuse_volume] += fc.P[q] * diffuse_track * p_.h;
 }
 
-void BatchInFlight::end(bool keep, KeptBatches& kept) {
+void BatchInFlight::end(bool keep) {
+    KeptBatches& kept = kept_;
     const int nb = p_.nb;
     auto fold = [&](std::vector<double>& from, std::vector<double>& s1, std::vector<double>& s2, std::int64_t c) {
         double* v = from.data() + c * nb;
@@ -178,6 +193,14 @@ void BatchInFlight::end(bool keep, KeptBatches& kept) {
     };
     for_each_listed(touched_, [&](std::int64_t c) {
         fold(tally_, kept.sum, kept.sumsq, c);
+        if (!flux_.empty()) {
+            double* v = flux_.data() + 3 * c * nb;
+            double* s = kept.fsum.data() + 3 * c * nb;
+            for (int q = 0; q < 3 * nb; ++q) {
+                if (keep) s[q] += v[q];
+                v[q] = 0.0;
+            }
+        }
         if (settings_.tally_reduced) fold(rtally_, kept.rsum, kept.rsumsq, c);
     });
     touched_.clear();

@@ -12,7 +12,11 @@
 // which streams through memory where the list's scattered entries miss the cache; each cell's
 // fold is independent of the others', so both give bit-identical tallies (only the term's total
 // track, summed over the cells for the diffuse_volume counter, is summed in the visiting order
-// and may differ in its last bits).
+// and may differ in its last bits). The flux (ForwardSettings::tally_flux; a collision
+// estimator, photon.h) goes the same way: the kernels add w s d / kappa per collision to an
+// accumulator of 4 doubles per cell, folded with the fluence (x the same P/h²) into the batch's
+// flux tally or, in a run whose batches are all kept (no time budget, no target error),
+// straight into the kept sums (KeptBatches::fsum).
 #pragma once
 
 #include <cstdint>
@@ -20,6 +24,7 @@
 
 #include "solvers/montecarlo/forward.h"
 #include "solvers/montecarlo/replicated_problem.h"
+#include "src/core/huge_pages.h"
 
 namespace nimbus::mc {
 
@@ -28,16 +33,21 @@ namespace nimbus::mc {
 struct KeptBatches {
     std::vector<double> sum, sumsq;    // of each batch's fluence estimate
     std::vector<double> rsum, rsumsq;  // of the reduced (unscattered) fluence, with tally_reduced
+    std::vector<double> fsum;          // of each batch's flux estimate, [cell][band][axis] (tally_flux)
     std::int64_t photons = 0, collisions = 0, segments = 0;
-    KeptBatches(const ReplicatedProblem& p, bool tally_reduced);
+    KeptBatches(const ReplicatedProblem& p, const ForwardSettings& settings);
 };
 
 class BatchInFlight {
 public:
     // Tracing accumulates in p's voxels (Voxel::tally) and zeroes them again before trace()
     // returns; p must outlive the batch. lanes: trace with the lane kernel (trace_lanes.h) where
-    // the settings allow it (not with the forced first collision or the reduced tally).
-    BatchInFlight(ReplicatedProblem& p, const MonteCarloOptions& opt, const ForwardSettings& settings, bool lanes);
+    // the settings allow it (not with the forced first collision or the reduced tally). kept:
+    // the sums end() folds into (it must outlive the batch); without a time budget and a target
+    // error every batch is kept, so the flux (which has no standard error) is folded straight
+    // into kept.fsum, skipping the batch's own flux tally and its pass in end().
+    BatchInFlight(ReplicatedProblem& p, const MonteCarloOptions& opt, const ForwardSettings& settings, bool lanes,
+                  KeptBatches& kept);
 
     // Traces part [k0, k1) of the `steps` steps of `batch` (of `layout` batches) into the batch:
     // of every term with N photons, the photons [lo + (hi - lo) k0 / steps, lo + (hi - lo) k1 /
@@ -45,8 +55,9 @@ public:
     // also books the batch's incident power and the rays that miss the box.
     void trace(int batch, int layout, std::int64_t k0, std::int64_t k1, std::int64_t steps);
 
-    // Folds the batch into `kept` (keep) or drops it; the batch in flight is empty afterwards.
-    void end(bool keep, KeptBatches& kept);
+    // Folds the batch into the kept sums (keep) or drops it; the batch in flight is empty
+    // afterwards. keep is true for every batch of a run without time budget and target error.
+    void end(bool keep);
 
     // The batch's energy counters per band (W), so far.
     const std::vector<Counters>& counters() const { return counters_; }
@@ -69,8 +80,13 @@ private:
     ReplicatedProblem& p_;
     const MonteCarloOptions& opt_;
     const ForwardSettings& settings_;
+    KeptBatches& kept_;
     std::vector<double> tally_, rtally_;  // [cell][band] of the batch (rtally_: reduced tally)
     std::vector<double> reduced_acc_;     // the light term's reduced track per cell (tally_reduced)
+    std::vector<double> flux_;  // [cell][band][axis] of the batch (tally_flux), when batches may
+                                // be dropped; else folded straight into kept_.fsum
+    std::vector<double, HugePageAllocator<double>> flux_acc_;  // the fold class's collision
+                                                               // sums, [cell][4] (trace_light.h)
     std::vector<std::int64_t> touched_, light_touched_;  // cells tallied in the batch / by the term
     std::vector<Counters> counters_;
     std::int64_t photons_ = 0, collisions_ = 0, segments_ = 0;

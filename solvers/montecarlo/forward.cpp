@@ -86,8 +86,9 @@ void batch_mean_stderr(double s, double s2, int K, double& mean, double& se) {
 template <class HasDensity, class At>
 void reduce_to_owners(const Decomposition& d, int nb, int K, HasDensity&& has_density, At&& at,
                       const std::vector<double>& sum, const std::vector<double>& sumsq,
-                      const std::vector<double>* rsum, const std::vector<double>* rsumsq, ForwardResult& res) {
-    const int P = d.size(), nq = rsum ? 4 : 2;
+                      const std::vector<double>* rsum, const std::vector<double>* rsumsq,
+                      const std::vector<double>* fsum, ForwardResult& res) {
+    const int P = d.size(), nq = (rsum ? 4 : 2) + (fsum ? 3 : 0);
     std::vector<std::int64_t> recv_counts(static_cast<size_t>(P), 0);
     for (int r = 0; r < P; ++r)
         for_each_cell(d.box_of(r), [&](int i, int j, int k) {
@@ -106,6 +107,8 @@ void reduce_to_owners(const Decomposition& d, int nb, int K, HasDensity&& has_de
                     send.push_back((*rsum)[c + q]);
                     send.push_back((*rsumsq)[c + q]);
                 }
+                if (fsum)
+                    for (int a = 0; a < 3; ++a) send.push_back((*fsum)[3 * (c + q) + a]);
             }
         });
     const std::vector<double> recv = reduce_scatter_sum(d.comm(), send, recv_counts);  // > 2^31: mpi_counts.h
@@ -116,7 +119,9 @@ void reduce_to_owners(const Decomposition& d, int nb, int K, HasDensity&& has_de
             res.reduced.emplace_back(d.local(), 1, 1, 0.0);
             res.reduced_stderr.emplace_back(d.local(), 1, 1, 0.0);
         }
+        if (fsum) res.flux.emplace_back(d.local(), 1, 3, 0.0);
     }
+    const double k_batches = std::max(1, K);
     size_t pos = 0;
     for_each_cell(d.local(), [&](int i, int j, int k) {
         if (!has_density(i, j, k)) return;
@@ -129,9 +134,11 @@ void reduce_to_owners(const Decomposition& d, int nb, int K, HasDensity&& has_de
                                   res.reduced_stderr[static_cast<size_t>(q)](i, j, k));
                 pos += 2;
             }
+            if (fsum)
+                for (int a = 0; a < 3; ++a) res.flux[static_cast<size_t>(q)](i, j, k, a) = recv[pos++] / k_batches;
         }
     });
-    for (auto* v : {&res.fluence, &res.fluence_stderr, &res.reduced, &res.reduced_stderr})
+    for (auto* v : {&res.fluence, &res.fluence_stderr, &res.reduced, &res.reduced_stderr, &res.flux})
         for (Field<double>& f : *v) exchange_halo(f, d);
 }
 
@@ -232,9 +239,9 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
     ReplicatedProblem problem = replicate_problem(d, medium, lights, sources, opt, settings);
     ForwardResult res;
     res.replicated_gb = problem.replicated_gb;
-    KeptBatches kept_sums(problem, settings.tally_reduced);
+    KeptBatches kept_sums(problem, settings);
     const bool lanes = uses_lane_kernel(opt, settings);
-    BatchInFlight flight(problem, opt, settings, lanes);
+    BatchInFlight flight(problem, opt, settings, lanes, kept_sums);
     res.kernel = lanes ? "lanes" : "scalar";
     const double t_setup = wall_time();
 
@@ -317,7 +324,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
             split = pilot(batch >= 0 ? static_cast<double>(k) / static_cast<double>(steps) : 0.0,
                           wall_time() - t_round);
         if (split > 1) {
-            flight.end(false, kept_sums);
+            flight.end(false);
             log::info(
                 "montecarlo: a batch of {} photons would take {:.2f} s of the {:.2f} s time "
                 "budget: {} batches of {} photons instead",
@@ -373,7 +380,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
         }
         MPI_Bcast(&target_kept, 1, MPI_INT, 0, d.comm());
         if (target_kept > 0) kept = target_kept;
-        if (batch >= 0) flight.end(batch < done + kept, kept_sums);
+        if (batch >= 0) flight.end(batch < done + kept);
         for (int b = 0; b < kept; ++b) {
             for (int q = 0; q < nb; ++q) {
                 Counters c;
@@ -434,7 +441,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
         d, nb, done, [&](int i, int j, int k) { return problem.has_density(i, j, k); },
         [&](int i, int j, int k) { return problem.box_index(i, j, k); }, kept_sums.sum, kept_sums.sumsq,
         settings.tally_reduced ? &kept_sums.rsum : nullptr, settings.tally_reduced ? &kept_sums.rsumsq : nullptr,
-        res);
+        settings.tally_flux ? &kept_sums.fsum : nullptr, res);
     // Phase times, the maximum over the ranks (so that every rank reports the same values).
     const double t_end = wall_time();
     double times[4] = {t_end - t_start, t_setup - t_start, t_traced - t_setup, t_end - t_traced}, tmax[4];

@@ -9,7 +9,8 @@
 // rounds of one batch per rank; between rounds the stop criteria (photon count, time budget,
 // target relative error of the total diffuse power) are decided collectively. Tallies are
 // reduced to the owner of each box (MPI_Reduce_scatter), only over cells with density (the
-// fluence of empty cells is 0 by contract).
+// fluence of empty cells is 0 by contract). The diffuse flux (ForwardResult::flux, a collision
+// estimator: photon.h) goes the same way, without a standard error; it is 0 in empty cells too.
 //
 // Time budget (opt.time_budget): a rank traces its batch in chunks of photon indices (about
 // kChunkSeconds each) and stops it at the budget's deadline, which all ranks share (measured
@@ -77,12 +78,18 @@ struct ForwardSettings {
     // Consecutive light terms of one colour share the voxel accumulators and one fold
     // (batch_in_flight.h); false: a fold per term. Changes speed and rounding, not the estimate.
     bool fold_by_colour = true;
+    // Tally the diffuse flux F (ForwardResult::flux; the collision estimator, photon.h). Off:
+    // the kernels skip it (for measuring its cost; the model always tallies it).
+    bool tally_flux = true;
 };
 
 struct ForwardResult {
     // Per band, on the rank's owned box + 1 ghost (halo-exchanged), W/m².
     std::vector<Field<double>> fluence, fluence_stderr;
     std::vector<Field<double>> reduced, reduced_stderr;  // only with tally_reduced
+    // Per band, 3 components, owned box + 1 ghost (halo-exchanged), W/m²: the cell mean of the
+    // diffuse flux F = ∫ I_d w dw, the batch mean (no standard error); only with tally_flux.
+    std::vector<Field<double>> flux;
     // Per band, over the whole domain (same on every rank): batch mean and its standard error.
     std::vector<Counters> counters, counters_stderr;
     std::int64_t photons = 0, collisions = 0;  // totals over all ranks
@@ -112,11 +119,14 @@ bool uses_lane_kernel(const MonteCarloOptions& opt, const ForwardSettings& setti
 // Bytes per rank of the replicated arrays of trace_forward for a grid (or walked box) of
 // `cells` cells: density (gathered + global), the 16-byte voxels per optics group, per band the
 // batch tally and its running sum and sum of squares (twice with the reduced tally) and the
-// reduce buffer; plus at most 4 bytes per covered cell of the volume sources' cell lists.
+// reduce buffer; with the flux, its accumulator (4 doubles) and per band its batch tally (with a
+// time budget or a target error), sum and reduce buffer (3 doubles each); plus at most 4 bytes per covered cell of the
+// volume sources' cell lists.
 inline double replicated_bytes(double cells, int optics_groups, int nbands, bool tally_reduced,
-                               double source_cells = 0.0) {
+                               double source_cells = 0.0, bool tally_flux = true) {
     const int nq = tally_reduced ? 4 : 2;
-    return cells * (16.0 + 16.0 * optics_groups + 8.0 * nbands * (nq / 2) * 3 + 8.0 * nbands * nq + 12.0) +
+    const double flux = tally_flux ? 32.0 + 24.0 * nbands * 3 : 0.0;
+    return cells * (16.0 + 16.0 * optics_groups + 8.0 * nbands * (nq / 2) * 3 + 8.0 * nbands * nq + 12.0 + flux) +
            4.0 * source_cells;
 }
 

@@ -34,7 +34,7 @@ public:
         }
         out.fluence = std::move(r.fluence);
         out.fluence_stderr = std::move(r.fluence_stderr);
-        out.flux.clear();
+        out.flux = std::move(r.flux);  // halo-exchanged, as the fluence
 
         const double cores = ctx.decomp.size();
         // Throughput of the tracing rounds; the fixed costs (setup, reduction) are reported apart.

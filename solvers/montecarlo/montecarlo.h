@@ -1,5 +1,6 @@
 // The Monte Carlo reference model (issue 3): forward light tracing for fluence_diffuse with
-// per-cell standard errors (forward.h), and optionally a path-traced camera image
+// per-cell standard errors and flux_diffuse (track length, no standard error; forward.h), and
+// optionally a path-traced camera image
 // (path_tracer.h). Parameters ([model.montecarlo], MonteCarloOptions in src/model/options.h):
 //
 //   | name                     | default | meaning                                          |

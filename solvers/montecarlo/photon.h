@@ -18,7 +18,12 @@
 //                medium and is tallied from its first segment (emitted light is diffuse)
 //   estimator:   fluence_cell += w P len / V for every segment after the first scattering
 //                (the unscattered beam E0 T is the reduced fluence: tallied only on request;
-//                forced: as its expected value along the entry ray, uncollided_track)
+//                forced: as its expected value along the entry ray, uncollided_track);
+//                flux: at each collision that ends such a segment (a diffuse flight),
+//                flux_cell += w P d / (kappa V), w the weight before capture, d the flight's
+//                direction, kappa the cell's extinction: the collision estimator. Collisions
+//                along a length l of a flight in the cell number kappa l on average, so its
+//                expectation is that of the track-length sum w P len d / V (the fluence's).
 //
 // Pure kernel: no MPI, no allocation; the caller owns the tally arrays.
 #pragma once
@@ -262,10 +267,15 @@ inline double uncollided_track(double tau_in, double kappa, double len) {
 
 // Continues a path of weight w from its collision at s until it leaves the domain or ends:
 // implicit capture, roulette, HG scattering, the next free flight (tallied as diffuse).
-template <class TallyDiffuse>
+// tally_collision(idx, w) is called at every collision that ends a diffuse flight (the first
+// one too when `diffuse`), before the capture, with s.d the flight's direction.
+template <class TallyDiffuse, class TallyCollision>
 [[gnu::always_inline]] inline void scatter_path(const GridView& grid, const PhotonOptics& o, PathRng& rng, PathState& s,
-                         PathTally& out, double w, TallyDiffuse&& tally_diffuse) {
+                         PathTally& out, double w, TallyDiffuse&& tally_diffuse, TallyCollision&& tally_collision,
+                         bool diffuse) {
     for (;;) {
+        if (diffuse) tally_collision(s.idx, w);
+        diffuse = true;
         ++out.collisions;
         out.absorbed += w * (1.0 - o.albedo);
         w *= o.albedo;
@@ -293,14 +303,15 @@ template <class TallyDiffuse>
 }
 
 // Traces one path from state s (already at its entry point). tally_diffuse(idx, w_len) is
-// called per segment after the first scattering; tally_reduced(idx, track) per uncollided
+// called per segment after the first scattering, tally_collision(idx, w) at each collision
+// after the first (scatter_path); tally_reduced(idx, track) per uncollided
 // segment if tally_reduced_on: the analog track length before the first collision, or with
 // `forced` the expected uncollided track (uncollided_track) over the whole entry ray. A forced
 // path costs one walk of its entry ray (tau_tot) plus the walk to its collision.
-template <bool tally_reduced_on = false, class TallyDiffuse, class TallyReduced>
+template <bool tally_reduced_on = false, class TallyDiffuse, class TallyCollision, class TallyReduced>
 [[gnu::always_inline]] inline void trace_photon(const GridView& grid, const PhotonOptics& o, PathRng& rng, PathState& s,
-                         PathTally& out, TallyDiffuse&& tally_diffuse, TallyReduced&& tally_reduced,
-                         bool forced = false) {
+                         PathTally& out, TallyDiffuse&& tally_diffuse, TallyCollision&& tally_collision,
+                         TallyReduced&& tally_reduced, bool forced = false) {
     constexpr double inf = std::numeric_limits<double>::infinity();
     double w = 1.0;
     if (forced) {
@@ -331,22 +342,23 @@ template <bool tally_reduced_on = false, class TallyDiffuse, class TallyReduced>
             return;
         }
     }
-    scatter_path(grid, o, rng, s, out, w, tally_diffuse);
+    scatter_path(grid, o, rng, s, out, w, tally_diffuse, tally_collision, false);
 }
 
 // A photon of a volume source (emitter.h): starts at s (inside an emitting cell, direction
-// s.d) with weight 1. All emitted light is diffuse light (DESIGN §1), so its track is tallied
-// from the start; an emitted photon that leaves uncollided is booked in escaped_diffuse.
-template <class TallyDiffuse>
+// s.d) with weight 1. All emitted light is diffuse light (DESIGN §1), so its track (and its
+// first collision) is tallied from the start; an emitted photon that leaves uncollided is
+// booked in escaped_diffuse.
+template <class TallyDiffuse, class TallyCollision>
 [[gnu::always_inline]] inline void trace_emitted_photon(const GridView& grid, const PhotonOptics& o, PathRng& rng, PathState& s,
-                                 PathTally& out, TallyDiffuse&& tally_diffuse) {
+                                 PathTally& out, TallyDiffuse&& tally_diffuse, TallyCollision&& tally_collision) {
     const double tau = -std::log(rng.uniform());
     const int face = walk_optical_depth(grid, s, tau, [&](std::int64_t idx, double len) { tally_diffuse(idx, len); });
     if (face >= 0) {
         out.escaped_diffuse[face] += 1.0;
         return;
     }
-    scatter_path(grid, o, rng, s, out, 1.0, tally_diffuse);
+    scatter_path(grid, o, rng, s, out, 1.0, tally_diffuse, tally_collision, true);
 }
 
 }  // namespace nimbus::mc

@@ -32,7 +32,7 @@ ReplicatedProblem replicate_problem(const Decomposition& d, const Medium& medium
     double source_cells = 0.0;
     for (const VolumeSource& src : sources) source_cells += static_cast<double>(src.cells.cells());
     const double bytes = replicated_bytes(static_cast<double>(d.global().cells()), static_cast<int>(p.groups.size()),
-                                          p.nb, settings.tally_reduced, source_cells);
+                                          p.nb, settings.tally_reduced, source_cells, settings.tally_flux);
     p.replicated_gb = bytes / 1e9;
     check_replicated_memory(n, bytes, opt);
 

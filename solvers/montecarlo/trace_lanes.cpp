@@ -57,6 +57,11 @@ struct alignas(64) LaneStore {
     std::uint64_t draws[kLanes];       // uniforms the path's stream has given (PathRng::draws)
     std::uint64_t block[4][kLanes];    // words of the stream's block draws / 4 (PathRng::next_draw_block)
     std::uint64_t photon[kLanes];      // photon index (the stream's counter words 1 and 2)
+    // The flux of this serve's collisions (scatter_collided), added to the accumulators at the
+    // end of serve(): its cells were prefetched, and the rest of serve hides the wait.
+    alignas(32) double flux_add[kLanes][4];
+    std::int64_t flux_cell[kLanes];
+    m8 flux_lanes;
 };
 
 struct Walk {
@@ -275,6 +280,7 @@ struct Context {
     EntryTables entry;      // set by run_lanes for a light term
     std::vector<std::int64_t>& lit;
     PathTally& out;
+    double* flux;  // the flux accumulators ([cell][4]: x, y, z, unused; trace_light.h), or null
     // Light photons started ahead, eight at a time (start_light_photons costs the same for one
     // lane as for eight): lanes [taken, ready) of `ahead` wait for an empty lane.
     LaneStore ahead{};
@@ -469,10 +475,28 @@ NIMBUS_V4 void book_exits(const GridView& g, LaneStore& st, const Masks& m, Lane
     }
 }
 
-// The collided lanes: implicit capture, roulette, HG scattering and the next free path
+// The collided lanes: the flux's collision estimator on the lanes of `diffuse` (those whose
+// flight was tallied), then implicit capture, roulette, HG scattering and the next free path
 // (scatter_path in photon.h, in its order and with its draws). Returns the lanes whose path goes
 // on; the others are ended.
-NIMBUS_V4 m8 scatter_collided(Context& c, LaneStore& st, m8 C, LaneSums& sums) {
+NIMBUS_V4 m8 scatter_collided(Context& c, LaneStore& st, m8 C, m8 diffuse, LaneSums& sums) {
+    if (c.flux && diffuse) {  // (w s / kappa) d in the collision's cell (photon.h)
+        alignas(64) double kappa[kLanes], F[3][kLanes];
+        for (m8 z = diffuse; z; z &= static_cast<m8>(z - 1)) {
+            const int l = std::countr_zero(static_cast<unsigned>(z));
+            kappa[l] = static_cast<double>(c.grid.voxel[st.idx[l]].kappa);
+        }
+        const vd ws = _mm512_mul_pd(_mm512_load_pd(st.w), _mm512_set1_pd(c.term.tally_scale));
+        const vd wk = _mm512_maskz_div_pd(diffuse, ws, _mm512_load_pd(kappa));
+        for (int a = 0; a < 3; ++a) _mm512_store_pd(F[a], _mm512_mul_pd(wk, _mm512_load_pd(st.d[a])));
+        for (m8 z = diffuse; z; z &= static_cast<m8>(z - 1)) {
+            const int l = std::countr_zero(static_cast<unsigned>(z));
+            st.flux_cell[l] = st.idx[l];
+            _mm_prefetch(reinterpret_cast<const char*>(c.flux + 4 * st.idx[l]), _MM_HINT_T0);
+            _mm256_store_pd(st.flux_add[l], _mm256_set_pd(0.0, F[2][l], F[1][l], F[0][l]));
+        }
+        st.flux_lanes = diffuse;
+    }
     store_fractions(st, C);  // the collision point, with the old direction
     c.out.collisions += std::popcount(static_cast<unsigned>(C));
     const double albedo = c.optics.albedo;
@@ -559,7 +583,7 @@ NIMBUS_V4 void serve(Context& c, LaneStore& st, Masks& m, LaneSums& sums) {
     m.exited = 0;
     m8 setup = 0;  // lanes whose next flight starts now
     if (const m8 C = m.collided) {
-        const m8 alive = scatter_collided(c, st, C, sums);
+        const m8 alive = scatter_collided(c, st, C, C & m.tallying, sums);
         m.empty |= C & static_cast<m8>(~alive);
         m.tallying |= alive;
         setup |= alive;
@@ -591,6 +615,15 @@ NIMBUS_V4 void serve(Context& c, LaneStore& st, Masks& m, LaneSums& sums) {
     }
     if (setup) set_up_flights(c.grid, st, setup);
     m.active = static_cast<m8>(~m.empty);
+    // The collisions' flux (scatter_collided): one 32-byte add per lane, one after the other
+    // (lanes may share a cell). The cell of a lane refilled since is the collision's, kept in
+    // flux_cell.
+    for (m8 z = st.flux_lanes; z; z &= static_cast<m8>(z - 1)) {
+        const int l = std::countr_zero(static_cast<unsigned>(z));
+        double* f = c.flux + 4 * st.flux_cell[l];
+        _mm256_storeu_pd(f, _mm256_add_pd(_mm256_loadu_pd(f), _mm256_load_pd(st.flux_add[l])));
+    }
+    st.flux_lanes = 0;
 }
 
 // One group of kLanes paths: their state, masks and energy sums.
@@ -722,8 +755,9 @@ NIMBUS_V4_INLINE void pass(Context& c, Lanes& L) {
 }
 
 NIMBUS_V4 void run_lanes(const GridView& g, const PhotonOptics& optics, const LightTerm& term, std::uint64_t seed,
-                         std::int64_t lo, std::int64_t hi, std::vector<std::int64_t>& lit, PathTally& out) {
-    Context c{g, optics, term, seed, lo, hi, {}, {}, lit, out};
+                         std::int64_t lo, std::int64_t hi, std::vector<std::int64_t>& lit, PathTally& out,
+                         double* flux) {
+    Context c{g, optics, term, seed, lo, hi, {}, {}, lit, out, flux};
     set_philox_keys(seed, c.keys);
     if (!term.emitter) set_entry_tables(*term.entry, c.entry);
     // Two groups, passed in turn: their chains of dependent steps are independent, so the core
@@ -760,9 +794,9 @@ NIMBUS_V4 void run_lanes(const GridView& g, const PhotonOptics& optics, const Li
 
 void trace_photons_lanes(const GridView& grid, const PhotonOptics& optics, const LightTerm& term,
                          std::uint64_t seed, std::int64_t lo, std::int64_t hi,
-                         std::vector<std::int64_t>& lit, PathTally& out) {
+                         std::vector<std::int64_t>& lit, PathTally& out, double* flux) {
     if (hi <= lo) return;
-    run_lanes(grid, optics, term, seed, lo, hi, lit, out);
+    run_lanes(grid, optics, term, seed, lo, hi, lit, out, flux);
 }
 
 }  // namespace nimbus::mc

@@ -40,9 +40,9 @@ namespace nimbus::mc {
 bool lane_kernel_supported();
 
 // trace_photons (trace_light.h) without the forced first collision and the reduced tally, in
-// lanes. Requires lane_kernel_supported().
+// lanes, with its flux tally (`flux`, optional). Requires lane_kernel_supported().
 void trace_photons_lanes(const GridView& grid, const PhotonOptics& optics, const LightTerm& term,
                          std::uint64_t seed, std::int64_t lo, std::int64_t hi,
-                         std::vector<std::int64_t>& lit, PathTally& out);
+                         std::vector<std::int64_t>& lit, PathTally& out, double* flux = nullptr);
 
 }  // namespace nimbus::mc

@@ -8,6 +8,11 @@
 // appended to `lit`, so the caller can fold the accumulators into its per-band tallies and zero
 // them in O(cells touched). With `reduced` (verification only), the uncollided track goes to
 // reduced[idx] (cells listed in `lit` too; a cell may be listed twice, folding 0 the second time).
+// With `flux` (4 doubles per padded cell, [idx][x, y, z, unused]; 32-byte aligned), each
+// collision that ends a tallied flight adds (w s / kappa) d there (w the weight before capture,
+// d the flight's direction, kappa the cell's Voxel::kappa in 1/cell): the collision estimator of
+// the diffuse flux, whose expectation is the track-length sum w len s d (photon.h). Its cells
+// are listed in `lit` (the flight's last segment, in that cell, tallied the fluence).
 //
 // Compiled twice (x86-64-v3 with AVX2/FMA/BMI, and baseline x86-64), chosen at load time by the
 // CPU; the two clones round differently where FMA contracts, so a path may differ in its last
@@ -37,6 +42,6 @@ struct LightTerm {
 // Traces photons [lo, hi) of `term` with seed `seed`; out collects the energy bookkeeping.
 void trace_photons(const GridView& grid, const PhotonOptics& optics, const LightTerm& term, std::uint64_t seed,
                    std::int64_t lo, std::int64_t hi, bool forced_first_collision, double* reduced,
-                   std::vector<std::int64_t>& lit, PathTally& out);
+                   std::vector<std::int64_t>& lit, PathTally& out, double* flux = nullptr);
 
 }  // namespace nimbus::mc

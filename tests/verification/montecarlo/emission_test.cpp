@@ -7,8 +7,8 @@
 //   (c) one emitting cell in a pure absorber: the cell-averaged fluence at distance r is
 //       P exp(-kappa r) / (4π r²) integrated over the source cell and averaged over the
 //       detector cell (6-D Gauss-Legendre), z-test per detector;
-//   (d) the same seed gives the same result on 1 rank (MPI_COMM_SELF) and on all ranks, with
-//       a light and two sources sharing the photon budget;
+//   (d) the same seed gives the same result (fluence and flux) on 1 rank (MPI_COMM_SELF) and
+//       on all ranks, with a light and two sources sharing the photon budget;
 //   (e) the void duct (scenes/duct.toml): a short run with another seed agrees with the stored
 //       reference that the DOM test compares against (tests/data/duct_mc_reference.csv).
 #include "src/scene/emission.h"
@@ -244,6 +244,10 @@ TEST(Emission, AllRanksMatchOneRankAndSameSeedSameResult) {
                              std::abs(a.fluence_stderr[q](i, j, k) - b.fluence_stderr[q](i, j, k)));
             peak = std::max(peak, b.fluence[q](i, j, k));
             same &= a.fluence[q](i, j, k) == a2.fluence[q](i, j, k);
+            for (int c = 0; c < 3; ++c) {  // the flux too (|F| <= fluence)
+                worst = std::max(worst, std::abs(a.flux[q](i, j, k, c) - b.flux[q](i, j, k, c)));
+                same &= a.flux[q](i, j, k, c) == a2.flux[q](i, j, k, c);
+            }
         });
     EXPECT_TRUE(same);
     EXPECT_GT(peak, 0.0);

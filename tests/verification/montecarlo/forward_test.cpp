@@ -341,6 +341,13 @@ TEST(Forward, ForcedFirstCollisionEnergyBalanceAndBeerLambert) {
     EXPECT_NEAR(c[absorbed] + c[escaped_direct], c[incident], 1e-12 * c[incident]);
 }
 
+// The largest difference of the flux of band q between a and b at cell (i, j, k), any component.
+double flux_difference(const ForwardResult& a, const ForwardResult& b, int q, int i, int j, int k) {
+    double worst = 0.0;
+    for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(a.flux[q](i, j, k, c) - b.flux[q](i, j, k, c)));
+    return worst;
+}
+
 TEST(Forward, SameSeedSameResultOtherSeedDiffers) {
     Slab slab(MPI_COMM_WORLD, 2.0, 0.95, 0.7);
     const std::vector<DirectionalLight> L{beam(0.8)};
@@ -350,21 +357,26 @@ TEST(Forward, SameSeedSameResultOtherSeedDiffers) {
     int same = 1, differs = 0;
     for_each_cell(slab.d.local(), [&](int i, int j, int k) {
         same &= a.fluence[0](i, j, k) == b.fluence[0](i, j, k) && a.fluence_stderr[0](i, j, k) == b.fluence_stderr[0](i, j, k);
+        same &= flux_difference(a, b, 0, i, j, k) == 0.0;
         differs |= a.fluence[0](i, j, k) != c.fluence[0](i, j, k);
+        differs |= flux_difference(a, c, 0, i, j, k) != 0.0;
     });
     EXPECT_TRUE(same);
     EXPECT_TRUE(differs);
 }
 
-// Band 0's fluence and standard error of a equal b's to `rel` of b's peak fluence on box (the
-// same photons: only the order of the sums may differ).
+// Band 0's fluence, its standard error and the flux of a equal b's to `rel` of b's peak fluence
+// on box (the same photons: only the order of the sums may differ; |F| <= fluence).
 void expect_same_fields(const ForwardResult& a, const ForwardResult& b, const Box& box, double rel = 1e-12) {
-    double worst = 0.0, peak = 0.0;
+    double worst = 0.0, peak = 0.0, flux = 0.0;
     for_each_cell(box, [&](int i, int j, int k) {
         worst = std::max(worst, std::abs(a.fluence[0](i, j, k) - b.fluence[0](i, j, k)));
         worst = std::max(worst, std::abs(a.fluence_stderr[0](i, j, k) - b.fluence_stderr[0](i, j, k)));
+        worst = std::max(worst, flux_difference(a, b, 0, i, j, k));
         peak = std::max(peak, b.fluence[0](i, j, k));
+        flux = std::max(flux, std::abs(b.flux[0](i, j, k, 2)));
     });
+    EXPECT_GT(flux, 0.0);
     EXPECT_GT(peak, 0.0);
     EXPECT_LE(worst, rel * peak);
 }
@@ -400,7 +412,7 @@ TEST(Forward, FoldingByListOrByScanGivesTheSameFields) {
     for_each_cell(slab.d.local(), [&](int i, int j, int k) {
         same &= a.fluence[0](i, j, k) == b.fluence[0](i, j, k) &&
                 a.fluence_stderr[0](i, j, k) == b.fluence_stderr[0](i, j, k) &&
-                a.reduced[0](i, j, k) == b.reduced[0](i, j, k);
+                a.reduced[0](i, j, k) == b.reduced[0](i, j, k) && flux_difference(a, b, 0, i, j, k) == 0.0;
         peak = std::max(peak, a.fluence[0](i, j, k));
     });
     EXPECT_GT(peak, 0.0);
@@ -433,7 +445,8 @@ TEST(Forward, TermsOfOneColourFoldedTogetherGiveTheSameFields) {
         for_each_cell(slab.d.local(), [&](int i, int j, int k) {
             worst = std::max({worst, std::abs(a.fluence[band](i, j, k) - b.fluence[band](i, j, k)),
                               std::abs(a.fluence_stderr[band](i, j, k) - b.fluence_stderr[band](i, j, k)),
-                              std::abs(a.reduced[band](i, j, k) - b.reduced[band](i, j, k))});
+                              std::abs(a.reduced[band](i, j, k) - b.reduced[band](i, j, k)),
+                              flux_difference(a, b, band, i, j, k)});
         });
         EXPECT_GT(peak, 0.0);
         EXPECT_LT(worst, 1e-12 * peak) << "band " << band;
@@ -462,7 +475,8 @@ TEST(Forward, LaneAndScalarKernelsGiveTheSameFields) {
     for_each_cell(slab.d.local(), [&](int i, int j, int k) { peak = std::max(peak, a.fluence[0](i, j, k)); });
     for_each_cell(slab.d.local(), [&](int i, int j, int k) {
         worst = std::max({worst, std::abs(a.fluence[0](i, j, k) - b.fluence[0](i, j, k)),
-                          std::abs(a.fluence_stderr[0](i, j, k) - b.fluence_stderr[0](i, j, k))});
+                          std::abs(a.fluence_stderr[0](i, j, k) - b.fluence_stderr[0](i, j, k)),
+                          flux_difference(a, b, 0, i, j, k)});
     });
     EXPECT_GT(peak, 0.0);
     EXPECT_LT(worst, 1e-12 * peak);

@@ -1,7 +1,7 @@
 // The lane kernel (solvers/montecarlo/trace_lanes.h) against the scalar kernel it vectorizes
 // (trace_light.h): the same photons must take the same paths, so the collision and segment
-// counts agree exactly, and the voxel tallies, the energy counters and the touched-cell lists
-// agree to round-off. Cases chosen to reach every branch of the lanes: empty-space jumps and
+// counts agree exactly, and the voxel tallies, the flux accumulators, the energy counters and
+// the touched-cell lists agree to round-off. Cases chosen to reach every branch of the lanes: empty-space jumps and
 // exits through every face of a sparse medium (live-pixel entry), periodic wraps, roulette
 // (low albedo), isotropic (g = 0) and backward scattering, a medium box smaller than the domain
 // (exit faces beyond the box), emitted photons, photon ranges not a multiple of the lanes.
@@ -52,6 +52,7 @@ Medium sparse_medium(const std::array<int, 3>& n, std::uint64_t seed, double haz
 struct Traced {
     PathTally tally;
     std::vector<double> voxel_tally;
+    std::vector<double> flux;  // the flux accumulators, [cell][4]
     std::set<std::int64_t> lit;
 };
 
@@ -60,8 +61,9 @@ template <class Kernel>
 Traced trace(VoxelGrid& vg, const std::array<bool, 3>& periodic, Kernel&& kernel) {
     for (Voxel& v : vg.voxel) v.tally = 0.0;
     Traced r;
+    r.flux.assign(4 * vg.voxel.size(), 0.0);
     std::vector<std::int64_t> lit;
-    kernel(vg.view(periodic), lit, r.tally);
+    kernel(vg.view(periodic), lit, r.tally, r.flux.data());
     for (const Voxel& v : vg.voxel) r.voxel_tally.push_back(v.tally);
     r.lit.insert(lit.begin(), lit.end());
     return r;
@@ -84,6 +86,14 @@ void expect_same(const Traced& a, const Traced& b, const char* what) {
     double worst = 0.0;
     for (size_t i = 0; i < a.voxel_tally.size(); ++i) worst = std::max(worst, std::abs(a.voxel_tally[i] - b.voxel_tally[i]));
     EXPECT_LT(worst, 1e-12 * peak);
+    // |w len d_a| <= w len: the flux to 1e-12 of the peak track, and not all zero
+    double flux_worst = 0.0, flux_peak = 0.0;
+    for (size_t i = 0; i < a.flux.size(); ++i) {
+        flux_worst = std::max(flux_worst, std::abs(a.flux[i] - b.flux[i]));
+        flux_peak = std::max(flux_peak, std::abs(a.flux[i]));
+    }
+    EXPECT_GT(flux_peak, 0.0);
+    EXPECT_LT(flux_worst, 1e-12 * peak);
     EXPECT_EQ(a.lit, b.lit);
 }
 
@@ -123,11 +133,11 @@ TEST(LaneKernel, LightPhotonsTakeTheScalarKernelsPaths) {
         }
         LightTerm term{&entry, lc.w, nullptr, 3, 0.75};
         const std::int64_t lo = 101, hi = 101 + 4003;  // not a multiple of the lanes
-        const Traced scalar = trace(vg, lc.periodic, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t) {
-            trace_photons(g, lc.optics, term, 42, lo, hi, false, nullptr, lit, t);
+        const Traced scalar = trace(vg, lc.periodic, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t, double* f) {
+            trace_photons(g, lc.optics, term, 42, lo, hi, false, nullptr, lit, t, f);
         });
-        const Traced lanes = trace(vg, lc.periodic, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t) {
-            trace_photons_lanes(g, lc.optics, term, 42, lo, hi, lit, t);
+        const Traced lanes = trace(vg, lc.periodic, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t, double* f) {
+            trace_photons_lanes(g, lc.optics, term, 42, lo, hi, lit, t, f);
         });
         expect_same(scalar, lanes, lc.name);
         int faces = 0;
@@ -148,11 +158,11 @@ TEST(LaneKernel, EmittedPhotonsTakeTheScalarKernelsPaths) {
     const PhotonOptics optics{0.9, 0.8, 0.05};
     LightTerm term{nullptr, Vec3{0, 0, -1}, &emitter, 5, 1.0};
     for (const std::array<bool, 3> periodic : {std::array<bool, 3>{false, false, false}, std::array<bool, 3>{true, false, true}}) {
-        const Traced scalar = trace(vg, periodic, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t) {
-            trace_photons(g, optics, term, 9, 0, 3001, false, nullptr, lit, t);
+        const Traced scalar = trace(vg, periodic, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t, double* f) {
+            trace_photons(g, optics, term, 9, 0, 3001, false, nullptr, lit, t, f);
         });
-        const Traced lanes = trace(vg, periodic, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t) {
-            trace_photons_lanes(g, optics, term, 9, 0, 3001, lit, t);
+        const Traced lanes = trace(vg, periodic, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t, double* f) {
+            trace_photons_lanes(g, optics, term, 9, 0, 3001, lit, t, f);
         });
         expect_same(scalar, lanes, periodic[0] ? "periodic x, z" : "open");
         EXPECT_EQ(scalar.tally.escaped_direct, 0.0);  // emitted light is diffuse from its start
@@ -170,11 +180,11 @@ TEST(LaneKernel, FewPhotons) {
     const LightTerm term{&entry, w, nullptr, 0, 1.0};
     const PhotonOptics optics{0.999, 0.5, 0.05};
     for (const std::int64_t count : {0, 1, 3, 17}) {
-        const Traced scalar = trace(vg, {false, false, false}, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t) {
-            trace_photons(g, optics, term, 1, 5, 5 + count, false, nullptr, lit, t);
+        const Traced scalar = trace(vg, {false, false, false}, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t, double* f) {
+            trace_photons(g, optics, term, 1, 5, 5 + count, false, nullptr, lit, t, f);
         });
-        const Traced lanes = trace(vg, {false, false, false}, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t) {
-            trace_photons_lanes(g, optics, term, 1, 5, 5 + count, lit, t);
+        const Traced lanes = trace(vg, {false, false, false}, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t, double* f) {
+            trace_photons_lanes(g, optics, term, 1, 5, 5 + count, lit, t, f);
         });
         if (count >= 17) {
             expect_same(scalar, lanes, "17 photons");  // collisions > 0, every tally and counter
@@ -200,11 +210,11 @@ TEST(LaneKernel, HighSeedAndPhotonIndexWords) {
     const PhotonOptics optics{0.95, 0.6, 0.05};
     const std::uint64_t seed = 0x9E3779B97F4A7C15ull;
     const std::int64_t lo = (std::int64_t{1} << 32) - 5, hi = lo + 1203;
-    const Traced scalar = trace(vg, {false, false, false}, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t) {
-        trace_photons(g, optics, term, seed, lo, hi, false, nullptr, lit, t);
+    const Traced scalar = trace(vg, {false, false, false}, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t, double* f) {
+        trace_photons(g, optics, term, seed, lo, hi, false, nullptr, lit, t, f);
     });
-    const Traced lanes = trace(vg, {false, false, false}, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t) {
-        trace_photons_lanes(g, optics, term, seed, lo, hi, lit, t);
+    const Traced lanes = trace(vg, {false, false, false}, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t, double* f) {
+        trace_photons_lanes(g, optics, term, seed, lo, hi, lit, t, f);
     });
     expect_same(scalar, lanes, "seed and photon indices beyond 32 bits");
 }
@@ -221,12 +231,12 @@ TEST(LaneKernel, SplitRangeEqualsWholeRange) {
     const LightTerm term{&entry, w, nullptr, 1, 1.0};
     const PhotonOptics optics{0.99, 0.85, 0.05};
     const std::int64_t lo = 40, cut = lo + 13, hi = lo + 517;
-    const Traced whole = trace(vg, {false, false, false}, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t) {
-        trace_photons_lanes(g, optics, term, 3, lo, hi, lit, t);
+    const Traced whole = trace(vg, {false, false, false}, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t, double* f) {
+        trace_photons_lanes(g, optics, term, 3, lo, hi, lit, t, f);
     });
-    const Traced split = trace(vg, {false, false, false}, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t) {
-        trace_photons_lanes(g, optics, term, 3, lo, cut, lit, t);
-        trace_photons_lanes(g, optics, term, 3, cut, hi, lit, t);
+    const Traced split = trace(vg, {false, false, false}, [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t, double* f) {
+        trace_photons_lanes(g, optics, term, 3, lo, cut, lit, t, f);
+        trace_photons_lanes(g, optics, term, 3, cut, hi, lit, t, f);
     });
     expect_same(whole, split, "[lo, cut) + [cut, hi) against [lo, hi)");
 }
