@@ -30,11 +30,13 @@ public:
             ScopedTimer timer(ctx.report, "montecarlo/trace");
             const std::vector<VolumeSource> sources = volume_sources(ctx.scene);
             check_volume_sources(sources, ctx.medium.rho, ctx.decomp);
-            r = mc::trace_forward(ctx.decomp, ctx.medium, ctx.light.lights, sources, opt_);
+            mc::ForwardSettings settings;
+            settings.tally_flux = opt_.flux;
+            r = mc::trace_forward(ctx.decomp, ctx.medium, ctx.light.lights, sources, opt_, settings);
         }
         out.fluence = std::move(r.fluence);
         out.fluence_stderr = std::move(r.fluence_stderr);
-        out.flux = std::move(r.flux);  // halo-exchanged, as the fluence
+        out.flux = std::move(r.flux);  // halo-exchanged, as the fluence; empty without opt_.flux
 
         const double cores = ctx.decomp.size();
         // Throughput of the tracing rounds; the fixed costs (setup, reduction) are reported apart.
@@ -100,9 +102,9 @@ public:
         check_scene(s, d);
     }
     void check_scene(const Scene& s, const Decomposition& d) const override {
-        mc::check_replicated_memory(d.global().hi, replicated_bytes(s, d), opt_);
+        mc::check_replicated_memory(d.global().hi, replicated_bytes(s, d, opt_), opt_);
     }
-    double memory_bytes(const Scene& s, const Decomposition& d, int) const override { return replicated_bytes(s, d); }
+    double memory_bytes(const Scene& s, const Decomposition& d, int) const override { return replicated_bytes(s, d, opt_); }
     // A round traces one batch per rank (forward.h), so ranks beyond the batch count, or in the
     // last round of a count that is not a multiple of the ranks, wait: said before the run.
     void check_layout(const Decomposition& d) const override {
@@ -130,12 +132,12 @@ public:
 
 private:
     // The replicated arrays of trace_forward (forward.h), as the run counts them: the whole grid.
-    static double replicated_bytes(const Scene& s, const Decomposition& d) {
+    static double replicated_bytes(const Scene& s, const Decomposition& d, const MonteCarloOptions& opt) {
         double source_cells = 0.0;
         for (const VolumeSource& src : volume_sources(s)) source_cells += static_cast<double>(src.cells.cells());
         return mc::replicated_bytes(static_cast<double>(d.global().cells()),
                                     static_cast<int>(group_by_optics(s.bands).size()), s.nbands(), false,
-                                    source_cells);
+                                    source_cells, opt.flux);
     }
     MonteCarloOptions opt_;
 };

@@ -40,6 +40,7 @@ struct MonteCarloOptions {
     bool image = false;                 // also path-trace the camera image
     int samples_per_pixel = 64;         // for the path-traced image
     std::string kernel = "auto";        // forward paths: auto (lanes where the CPU has AVX-512) | lanes | scalar
+    bool flux = true;                   // tally the diffuse flux F (flux_diffuse, the ray caster's in-scatter)
     void validate() const;
     bool operator==(const MonteCarloOptions&) const = default;
 };
@@ -57,6 +58,7 @@ void for_each_option(O& o, F&& f) {
     f("image", o.image);
     f("samples_per_pixel", o.samples_per_pixel);
     f("kernel", o.kernel);
+    f("flux", o.flux);
 }
 
 // The diffusion model on hypre (solvers/diffusion).

@@ -67,6 +67,30 @@ TEST(MonteCarloModel, SolveFillsFluenceStderrAndReport) {
     EXPECT_FALSE(model->renders_image());
 }
 
+// model.montecarlo.flux: the flux tally adds flux_diffuse (3 components per band) and changes
+// neither the paths nor the fluence; without it the model gives no flux (the ray caster then
+// takes the in-scatter as isotropic).
+TEST(MonteCarloModel, FluxOptionAddsTheFluxAndKeepsTheFluence) {
+    World w(MPI_COMM_WORLD, 0.9);
+    MonteCarloOptions o;
+    o.photons = 4000;
+    DiffuseSolution with, without;
+    make_montecarlo_model(o)->solve(w.ctx(), with);
+    o.flux = false;
+    make_montecarlo_model(o)->solve(w.ctx(), without);
+    ASSERT_EQ(with.flux.size(), 1u);
+    EXPECT_EQ(with.flux[0].ncomp(), 3);
+    EXPECT_TRUE(without.flux.empty());
+    double flux_norm = 0.0;
+    for_each_cell(w.d.local(), [&](int i, int j, int k) {
+        EXPECT_EQ(with.fluence[0](i, j, k), without.fluence[0](i, j, k));
+        EXPECT_EQ(with.fluence_stderr[0](i, j, k), without.fluence_stderr[0](i, j, k));
+        for (int a = 0; a < 3; ++a) flux_norm += std::abs(with.flux[0](i, j, k, a));
+    });
+    MPI_Allreduce(MPI_IN_PLACE, &flux_norm, 1, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+    EXPECT_GT(flux_norm, 0.0);
+}
+
 // Path-traces w's camera image with 4000 samples per pixel; on rank 0 checks every pixel of
 // the 6 x 4 image against expect(alpha) within 4 standard errors (rms z < 1.6), and returns
 // the image (empty on other ranks).
