@@ -3,7 +3,8 @@ r"""Speed against error (issue 3 item 5): every model on every scene, against a 
 
 For each scene: one long Monte Carlo reference run, then one run per model setting; each run is
 compared with `nimbus compare --json` against the reference (relative L2 and max relative error
-of fluence_diffuse over cells with density, per band; image RMSE when both runs wrote images).
+of fluence_diffuse over cells with density, and the ratio of the totals, per band; image RMSE
+when both runs wrote images).
 Writes study.csv, study.json and study.png (log-log wall time against relative L2 error, one
 panel per scene, one marker per model) into --out.
 
@@ -230,6 +231,8 @@ def main():
                 "wall_s": statistics.median(run["wall"]), "solve_s": statistics.median(run["solve"]),
                 "rel_l2": sum(b["rel_l2"] for b in bands) / len(bands) if bands else nan,
                 "max_rel": max((b["max_rel"] for b in bands), default=nan),
+                # the totals' ratio (bias), mean over the bands; NaN where undefined
+                "sum_ratio": sum(nan if b.get("sum_ratio") is None else b["sum_ratio"] for b in bands) / len(bands) if bands else nan,
                 "rms_z": sum(nan if b.get("rms_z") is None else b["rms_z"] for b in bands) / len(bands) if bands else nan,
                 "image_rmse": cmp.get("image", {}).get("rmse", float("nan")),
                 "image_rel": nan if cmp.get("image", {}).get("rel_error") is None else cmp["image"]["rel_error"],
