@@ -5,8 +5,8 @@
 # 10⁷ collisions/s per core and a 2-rank speed-up ≥ 1.8.
 #   bash jobs/bench_montecarlo.sh [build-dir [photons [reps [reference-nimbus]]]]
 #   (defaults: build, 4000000, 3)
-# Rows "new" (the default kernel: lanes where the CPU has AVX-512, and the diffuse flux tallied),
-# "no-flux" (the same binary with model.montecarlo.flux = false) and "scalar" (the same binary
+# Rows "new" (the default kernel: lanes where the CPU has AVX-512), "flux" (the same binary
+# with the diffuse flux tallied, model.montecarlo.flux = true) and "scalar" (the same binary
 # with model.montecarlo.kernel = "scalar") run alternately, so that a shared machine's load hits
 # them alike; with a fourth argument (a nimbus binary of another version) it runs in turn too
 # (row "ref"). Then the kernels' floor: bench_montecarlo (jobs/bench/bench_montecarlo.cpp) runs
@@ -47,14 +47,14 @@ median() { sort -g | awk '{ v[NR] = $1 } END { print v[int((NR + 1) / 2)] }'; }
 echo "| version | ranks | photons | tracing s | paths/s per core | collisions/s per core | tallied segments per collision |"
 echo "| --- | --- | --- | --- | --- | --- | --- |"
 declare -A T P C S
-versions=(new no-flux scalar)  # the same binary with model.montecarlo.flux = false, kernel = "scalar"
+versions=(new flux scalar)  # the same binary with model.montecarlo.flux = true, kernel = "scalar"
 [[ -n "$ref" ]] && versions+=(ref)
 for np in 1 2; do
   for ((r = 0; r < reps; ++r)); do
     for v in "${versions[@]}"; do
       b="$bin"; [[ "$v" == ref ]] && b="$ref"
       extra=(); [[ "$v" == scalar ]] && extra=(--set 'model.montecarlo.kernel="scalar"')
-      [[ "$v" == no-flux ]] && extra=(--set model.montecarlo.flux=false)
+      [[ "$v" == flux ]] && extra=(--set model.montecarlo.flux=true)
       out=$(run "$b" "$np" "${extra[@]}")  # set -e: a failed run ends the script (run printed why)
       read -r t p c s <<<"$out"
       T[$v$np]+="$t "; P[$v$np]+="$p "; C[$v$np]+="$c "; S[$v$np]+="$s "

@@ -158,7 +158,8 @@ const std::vector<KeyDoc>& scene_key_docs() {
         {"model.montecarlo.kernel",
          "auto (AVX-512 lanes where the CPU has them, else scalar) | lanes | scalar; same paths"},
         {"model.montecarlo.flux",
-         "tally the diffuse flux (flux_diffuse; the ray caster's in-scatter); false: 10-13% faster"},
+         "also tally the diffuse flux (flux_diffuse, then the ray caster's in-scatter); 10-12% slower, "
+         "and at 1e6 photons its noise speckles the image: for references of many photons"},
 
         {"model.diffusion", "P1 diffusion on hypre (solvers/diffusion/README.md)."},
         {"model.diffusion.solver",

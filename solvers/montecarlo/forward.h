@@ -79,7 +79,8 @@ struct ForwardSettings {
     // (batch_in_flight.h); false: a fold per term. Changes speed and rounding, not the estimate.
     bool fold_by_colour = true;
     // Tally the diffuse flux F (ForwardResult::flux; the collision estimator, photon.h). Off:
-    // the kernels skip it (MonteCarloOptions::flux = false: 10-13% more collisions per second).
+    // the kernels skip it (MonteCarloOptions::flux = false, the model's default: 10-12% more
+    // collisions per second).
     bool tally_flux = true;
 };
 

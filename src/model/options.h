@@ -40,7 +40,8 @@ struct MonteCarloOptions {
     bool image = false;                 // also path-trace the camera image
     int samples_per_pixel = 64;         // for the path-traced image
     std::string kernel = "auto";        // forward paths: auto (lanes where the CPU has AVX-512) | lanes | scalar
-    bool flux = true;                   // tally the diffuse flux F (flux_diffuse, the ray caster's in-scatter)
+    bool flux = false;                  // tally the diffuse flux F (flux_diffuse; the ray caster's in-scatter
+                                        // then uses it): 10-12% of the tracing; noisy at 1e6 photons
     void validate() const;
     bool operator==(const MonteCarloOptions&) const = default;
 };

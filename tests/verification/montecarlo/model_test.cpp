@@ -67,13 +67,14 @@ TEST(MonteCarloModel, SolveFillsFluenceStderrAndReport) {
     EXPECT_FALSE(model->renders_image());
 }
 
-// model.montecarlo.flux: the flux tally adds flux_diffuse (3 components per band) and changes
+// model.montecarlo.flux (off by default): the flux tally adds flux_diffuse (3 components per band) and changes
 // neither the paths nor the fluence; without it the model gives no flux (the ray caster then
 // takes the in-scatter as isotropic).
 TEST(MonteCarloModel, FluxOptionAddsTheFluxAndKeepsTheFluence) {
     World w(MPI_COMM_WORLD, 0.9);
     MonteCarloOptions o;
     o.photons = 4000;
+    o.flux = true;
     DiffuseSolution with, without;
     make_montecarlo_model(o)->solve(w.ctx(), with);
     o.flux = false;
