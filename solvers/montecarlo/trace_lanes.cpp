@@ -61,7 +61,7 @@ struct alignas(64) LaneStore {
     // end of serve(): its cells were prefetched, and the rest of serve hides the wait.
     alignas(32) double flux_add[kLanes][4];
     std::int64_t flux_cell[kLanes];
-    m8 flux_lanes;
+    m8 flux_lanes = 0;  // lanes with a flux_add to apply (none without the flux)
 };
 
 struct Walk {
