@@ -171,7 +171,7 @@ const std::vector<KeyDoc>& scene_key_docs() {
          ">= 0; cost only, the fields do not depend on it"},
         {"model.diffusion.max_transport_length",
          "metres (whatever grid.unit): cap on 1/kappa_tr in D and G; 0 = half the smallest "
-         "non-periodic extent of the cloud's bounding box"},
+         "non-periodic extent of the bounding box of each piece of cloud (full cells joined by faces)"},
         {"model.diffusion.clamp_negative", "set negative P1 fluence to 0 (the count is reported)"},
         {"model.diffusion.delta_scaling", "delta-Eddington optics and first-scatter source"},
         {"model.diffusion.flux_limiter", "none | levermore-pomraning (flux-limited diffusion)"},

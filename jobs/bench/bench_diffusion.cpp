@@ -48,7 +48,8 @@ struct Bare {
 // hypre PFMG-PCG on the model's matrix, nothing else: the floor.
 Bare bare_pfmg_pcg(const Decomposition& d, const diffusion::DiffusionProblem& p) {
     const auto region = diffusion::find_solve_region(d, p, DiffusionOptions{}.margin);
-    const diffusion::Assembler as(p, 1.0 / diffusion::default_transport_length(region, p));  // as the model
+    const diffusion::TransportFloor floor = diffusion::transport_floor(d, p, region, 0.0);
+    const diffusion::Assembler as(p, floor);  // as the model
     const Box box = d.local().intersect(region.box);
     diffusion::hypre::Grid grid(d.comm(), box, {0, 0, 0});
     diffusion::hypre::SymmetricStencil7 stencil;

@@ -9,7 +9,7 @@ FaceInput Assembler::neighbor(int r, int axis, int s, const Int3& c, Int3& nb, b
     nb[axis] += s;
     skip = false;
     FaceInput in;
-    in.kappa_floor = kappa_floor_;
+    in.kappa_floor = floor_at(c[0], c[1], c[2]);
     const bool outside = nb[axis] < 0 || nb[axis] >= p_.n[axis];
     if (outside && !p_.periodic[axis]) {  // domain boundary: Marshak, or a mirror
         in.mirror = p_.reflective[static_cast<size_t>(2 * axis + (s > 0 ? 1 : 0))];
@@ -24,7 +24,7 @@ FaceInput Assembler::neighbor(int r, int axis, int s, const Int3& c, Int3& nb, b
     if (kt > 0.0) {
         in.neighbor_full = true;
         in.kappa_tr_n = kt;
-        if (r >= 0) in.G_n = G_eff(r, nb[0], nb[1], nb[2], axis);
+        if (r >= 0) in.G_n = G_eff(r, nb[0], nb[1], nb[2], axis, in.kappa_floor);
     }
     return in;
 }
@@ -72,7 +72,7 @@ double Assembler::rhs(int r, int i, int j, int k) const {
             bool skip = false;
             const FaceInput in = neighbor(r, axis, s, c, nb, skip);
             if (skip) continue;
-            b += face_terms(kt, G_eff(r, i, j, k, axis), s, in, h).rhs;
+            b += face_terms(kt, G_eff(r, i, j, k, axis, in.kappa_floor), s, in, h).rhs;
         }
     }
     return b;
@@ -83,8 +83,9 @@ Vec3 Assembler::flux(int r, const Field<double>& U, int i, int j, int k) const {
     if (!full(i, j, k)) return F;
     const double kt = p_.kappa_tr(i, j, k), h = p_.h;
     const Int3 c{i, j, k};
+    const double floor = floor_at(i, j, k);
     for (int axis = 0; axis < 3; ++axis) {
-        const double Gp = G_eff(r, i, j, k, axis);
+        const double Gp = G_eff(r, i, j, k, axis, floor);
         double sum = 0.0;
         for (int s : {-1, +1}) {
             Int3 nb;

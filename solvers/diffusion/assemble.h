@@ -23,9 +23,14 @@ struct CellRow {
 
 class Assembler {
 public:
-    // p must outlive the Assembler. kappa_floor (1/m): lower bound of kappa_tr in D.
+    // p must outlive the Assembler. kappa_floor (1/m): lower bound of kappa_tr in D, the same in
+    // every cell.
     explicit Assembler(const DiffusionProblem& p, double kappa_floor = 0.0)
         : p_(p), kappa_floor_(kappa_floor) {}
+    // The floor per piece of cloud (solve_region.h, transport_floor), read in the full cells of
+    // this rank; it must outlive the Assembler. A face joins two cells of one piece, so both
+    // sides have the same floor.
+    Assembler(const DiffusionProblem& p, const TransportFloor& kappa_floor) : p_(p), floor_per_piece_(&kappa_floor) {}
 
     bool full(int i, int j, int k) const { return p_.kappa_tr(i, j, k) > 0.0; }
     CellRow row(int i, int j, int k) const;
@@ -39,17 +44,23 @@ public:
     Vec3 flux(int r, const Field<double>& U, int i, int j, int k) const;
 
 private:
-    // G consistent with the capped kappa_tr: Q1 / max(kappa_tr, floor). Inline: called per face.
-    double G_eff(int r, int i, int j, int k, int axis) const {
+    // The floor of full cell (i, j, k) of this rank.
+    double floor_at(int i, int j, int k) const {
+        return floor_per_piece_ ? floor_per_piece_->at(i, j, k) : kappa_floor_;
+    }
+    // G consistent with the capped kappa_tr: Q1 / max(kappa_tr, floor), floor that of the cell's
+    // piece. Inline: called per face.
+    double G_eff(int r, int i, int j, int k, int axis, double floor) const {
         const double kt = p_.kappa_tr(i, j, k);
         const double g = p_.G[static_cast<size_t>(r)](i, j, k, axis);
-        return kt >= kappa_floor_ ? g : g * kt / kappa_floor_;
+        return kt >= floor ? g : g * kt / floor;
     }
     // The neighbour across face (axis, s) of cell c; skip = periodic axis of length 1 (the
     // face couples the cell to itself and carries nothing).
     FaceInput neighbor(int r, int axis, int s, const Int3& c, Int3& nb, bool& skip) const;
     const DiffusionProblem& p_;
     double kappa_floor_ = 0.0;
+    const TransportFloor* floor_per_piece_ = nullptr;
 };
 
 }  // namespace nimbus::diffusion

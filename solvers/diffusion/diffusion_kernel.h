@@ -21,7 +21,8 @@
 // enters by and leaves through that face directly (marshak_escape); the face's flux carries it
 // (DiffusionProblem::escape_flux).
 // D uses max(kappa_tr, kappa_floor): the transport mean free path is capped at half the smallest
-// extent of the full cells' bounding box (DiffusionOptions::max_transport_length overrides). Without the cap,
+// extent of the bounding box of the cell's piece of cloud (cloud_pieces.h; a face joins two cells
+// of one piece; DiffusionOptions::max_transport_length overrides). Without the cap,
 // the near-empty cells at a cloud's smooth edge (rho -> 0, D -> ∞) form near-singular floating
 // patches and PFMG-PCG took 343 iterations on the 64³ cumulus. G is capped consistently,
 // G = Q1 / max(kappa_tr, floor), since F = 4π(Q1 - ∇U/3)/kappa_tr (README: uncapped G gives

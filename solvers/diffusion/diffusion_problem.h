@@ -38,9 +38,23 @@ struct DiffusionProblem {
 // the whole axis where periodic. Empty when no cell is full.
 struct SolveRegion {
     Box box;    // where the system is solved
-    Box cloud;  // the full cells' bounding box (the whole axis where periodic): the default
-                // transport-length cap comes from it, so the margin changes only the cost
+    Box cloud;  // the full cells' bounding box (the whole axis where periodic)
     std::int64_t cells() const { return box.cells(); }
+};
+
+// The floor of kappa_tr in D and G (diffusion_kernel.h), 1/m: one for every cell, or one per
+// piece of cloud (solve_region.h, transport_floor).
+struct TransportFloor {
+    double uniform = 0.0;           // the floor when `piece` is empty
+    Field<std::int32_t> piece;      // owned cells of the solve region ∩ the rank's box: the cell's piece
+    std::vector<double> per_piece;  // the floor of each piece
+    double largest = 0.0;           // the floor in the piece with the most cells (the run report's)
+    int pieces = -1;                // pieces of cloud (cloud_pieces.h); -1: not looked for
+
+    // The floor at full cell (i, j, k) of this rank.
+    double at(int i, int j, int k) const {
+        return per_piece.empty() ? uniform : per_piece[static_cast<size_t>(piece(i, j, k))];
+    }
 };
 
 // What the solve did, for the run report.
@@ -61,6 +75,7 @@ struct DiffusionResult {
     std::vector<Field<double>> U;     // per rhs, owned + 1 ghost (halo-exchanged), 0 in empty cells
     std::vector<Field<double>> flux;  // per rhs, F = 4π (G - D∇U), 3 components, owned + 1 ghost
     SolveRegion region;
+    TransportFloor kappa_floor;       // the transport cap's floor per cell (solve_region.h)
     std::vector<SolveStats> stats;    // per rhs
 };
 

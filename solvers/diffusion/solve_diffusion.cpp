@@ -21,11 +21,6 @@
 namespace nimbus::diffusion {
 namespace {
 
-// The transport-length cap of diffusion_kernel.h: the option, or the default for the region.
-double transport_cap(const SolveRegion& region, const DiffusionProblem& p, const DiffusionOptions& opt) {
-    return opt.max_transport_length > 0.0 ? opt.max_transport_length : default_transport_length(region, p);
-}
-
 // One linear solve of p (all right-hand sides share the matrix). Its report entries
 // (diffusion.systems) name the right-hand side, first_rhs + r, and the flux limiter's iteration
 // (0: the P1 start) when limiter_iteration >= 0.
@@ -35,8 +30,10 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
     const size_t nrhs = p.Q0.size();
     DiffusionResult res;
     {
-        ScopedTimer t(report, "region");
+        ScopedTimer t(report, "region");  // the solve region, and the cloud's pieces for the cap
         res.region = find_solve_region(d, p, opt.margin);
+        // Cap of the transport mean free path (diffusion_kernel.h): the option, or each piece's size.
+        res.kappa_floor = transport_floor(d, p, res.region, opt.max_transport_length);
     }
     for (size_t r = 0; r < nrhs; ++r) {
         res.U.emplace_back(d.local(), 1, 1, 0.0);
@@ -51,10 +48,9 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
                      {"cells", res.region.cells()}};
     if (res.region.box.empty() || nrhs == 0) return res;  // nothing scatters, or nothing lights it
 
-    // Cap of the transport mean free path (diffusion_kernel.h): the option, or the region size.
-    const double floor = 1.0 / transport_cap(res.region, p, opt);
-    rec["kappa_tr_floor"] = floor;
-    const Assembler assembler(p, floor);
+    rec["kappa_tr_floor"] = res.kappa_floor.largest;
+    if (res.kappa_floor.pieces >= 0) rec["pieces"] = res.kappa_floor.pieces;
+    const Assembler assembler(p, res.kappa_floor);
     LinearSolveOutput lin = opt.solver == "petsc"
                                 ? solve_with_petsc(d, assembler, p, res.region, opt, report)
                                 : solve_with_hypre(d, assembler, p, res.region, opt, report);
@@ -133,7 +129,6 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
     q.G = {p.G[r]};
     if (!p.escape_flux.empty()) q.escape_flux = {p.escape_flux[r]};
     DiffusionResult res = solve_linear(d, q, opt, report, r, 0);  // P1 with the cap: the first iterate
-    const double floor = 1.0 / transport_cap(res.region, p, opt);
     std::vector<double> history;
     double first_seconds = 0.0;
     int linear_iterations = res.stats[0].iterations;
@@ -158,7 +153,7 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
         for_each_cell(d.local(), [&](int i, int j, int k) {
             const double kt = p.kappa_tr(i, j, k);
             if (kt <= 0.0) return;
-            const double kc = std::max(q.kappa_tr(i, j, k), floor);
+            const double kc = std::max(q.kappa_tr(i, j, k), res.kappa_floor.at(i, j, k));
             const double* F = &res.flux[0](i, j, k);
             const double Fn = std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]);
             lambda.push_back(kt / (3.0 * q.kappa_tr(i, j, k)));

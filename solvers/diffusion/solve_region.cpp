@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <limits>
 
+#include "solvers/diffusion/cloud_pieces.h"
 #include "src/core/bounding_box.h"
 
 namespace nimbus::diffusion {
@@ -22,12 +23,29 @@ SolveRegion find_solve_region(const Decomposition& d, const DiffusionProblem& p,
     return r;
 }
 
-double default_transport_length(const SolveRegion& r, const DiffusionProblem& p) {
-    const Int3 s = r.cloud.shape();
+double default_transport_length(const Box& cloud, const DiffusionProblem& p) {
+    const Int3 s = cloud.shape();
     double ell = std::numeric_limits<double>::infinity();
     for (int a = 0; a < 3; ++a)
         if (!p.periodic[a]) ell = std::min(ell, 0.5 * p.h * s[a]);
     return ell;
+}
+
+TransportFloor transport_floor(const Decomposition& d, const DiffusionProblem& p, const SolveRegion& r,
+                               double max_transport_length) {
+    TransportFloor out;
+    if (max_transport_length > 0.0) {
+        out.uniform = out.largest = 1.0 / max_transport_length;
+        return out;
+    }
+    if (r.box.empty()) return out;
+    CloudPieces pieces = find_cloud_pieces(d, p.kappa_tr, r.box);
+    out.pieces = static_cast<int>(pieces.bounds.size());
+    for (const Box& b : pieces.bounds) out.per_piece.push_back(1.0 / default_transport_length(b, p));
+    out.largest = out.per_piece[static_cast<size_t>(std::max_element(pieces.cells.begin(), pieces.cells.end()) -
+                                                    pieces.cells.begin())];
+    out.piece = std::move(pieces.index);
+    return out;
 }
 
 }  // namespace nimbus::diffusion

@@ -60,7 +60,7 @@ DiffusionSynthetic::DiffusionSynthetic(const Decomposition& d, const BandProblem
     delta_ = Field<double>(own, 0, 1, 0.0);
     current_ = Field<double>(own, 0, 3, 0.0);
     if (region_.box.empty()) return;  // same answer on every rank: nothing is set up anywhere
-    kappa_floor_ = 1.0 / diffusion::default_transport_length(region_, dp_);
+    kappa_floor_ = diffusion::transport_floor(d, dp_, region_, 0.0);
 
     // Assemble the matrix and set up PFMG once (collective).
     namespace hy = diffusion::hypre;
@@ -105,7 +105,7 @@ void DiffusionSynthetic::set_up_current_filter() {
         fp_.sigma_a(i, j, k) = p_.kappa_tr(i, j, k);
     });
     exchange_halo(fp_.kappa_tr, d_);
-    const diffusion::Assembler assembler(fp_, kappa_floor_);
+    const diffusion::Assembler assembler(fp_, kappa_floor_);  // fp_ has dp_'s empty cells
     filter_A_ = assemble_matrix(d_.comm(), assembler, box_, *grid_, *stencil_);
     filter_ = std::make_unique<hy::Solver>(d_.comm(), "pfmg-cycle", period_[0] + period_[1] + period_[2] > 0);
     filter_->setup(*filter_A_, *b_, *x_);

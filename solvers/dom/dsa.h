@@ -116,7 +116,7 @@ private:
     const BandProblem& p_;
     diffusion::DiffusionProblem dp_;
     diffusion::SolveRegion region_;
-    double kappa_floor_ = 0.0;
+    diffusion::TransportFloor kappa_floor_;  // the diffusion model's transport cap, per piece of cloud
     double chi1_ = 0.0;      // the first Legendre moment of the (scaled) phase function
     Field<double> delta_;
     Field<double> delta_halo_;  // δ with its ghost layer, for the current's face differences

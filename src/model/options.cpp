@@ -35,7 +35,7 @@ void DiffusionOptions::validate() const {
     if (!(tolerance > 0 && tolerance < 1)) throw Error("model.diffusion.tolerance must be in (0, 1)");
     if (max_iterations < 1) throw Error("model.diffusion.max_iterations must be >= 1");
     if (margin < 0) throw Error("model.diffusion.margin must be >= 0");
-    if (!(max_transport_length >= 0 && std::isfinite(max_transport_length))) throw Error("model.diffusion.max_transport_length must be >= 0 (0 = half the smallest non-periodic extent of the cloud's bounding box)");
+    if (!(max_transport_length >= 0 && std::isfinite(max_transport_length))) throw Error("model.diffusion.max_transport_length must be >= 0 (0 = half the smallest non-periodic extent of each piece of cloud's bounding box)");
     if (flux_limiter != "none" && flux_limiter != "levermore-pomraning")
         throw Error(fmt::format("model.diffusion.flux_limiter = '{}': allowed are none, levermore-pomraning", flux_limiter));
     if (limiter_iterations < 1) throw Error("model.diffusion.limiter_iterations must be >= 1");

@@ -69,7 +69,7 @@ struct DiffusionOptions {
     int max_iterations = 200;
     int margin = 2;                   // cells of margin around the bounding box of non-empty cells
     double max_transport_length = 0;  // m, cap on 1/kappa_tr in D and G (0 = half the smallest non-periodic
-                                      // extent of the cloud's bounding box, default_transport_length)
+                                      // extent of each piece of cloud's bounding box, transport_floor)
     bool clamp_negative = true;       // set negative P1 fluence (boundary layers lit by a strongly
                                       // forward-scattered source) to 0; counts are reported
     bool delta_scaling = true;        // delta-Eddington optics for the P1 solve (solvers/diffusion)
