@@ -93,8 +93,8 @@ public:
         if (opt_.max_transport_length > 0 && opt_.max_transport_length < m.grid.h)
             log::warn("model.diffusion.max_transport_length = {:g} m is below the cell size {:g} m: in every cell "
                       "whose transport mean free path is longer (kappa_tr below 1/ℓ) light then diffuses less "
-                      "than one cell, stays where it is scattered, and the fluence tends to Q0/sigma_a (0 = the "
-                      "cloud's own size; the length is in metres whatever grid.unit is)",
+                      "than one cell, stays where it is scattered, and the fluence tends to Q0/sigma_a (0 = the size "
+                      "of each piece of cloud; the length is in metres whatever grid.unit is)",
                       opt_.max_transport_length, m.grid.h);
         if (opt_.tolerance < 1e-14)
             log::warn("model.diffusion.tolerance = {:g} is below what double precision usually reaches "
