@@ -50,6 +50,7 @@ CellRow Assembler::row(int i, int j, int k) const {
 }
 
 bool Assembler::has_marshak_face(int i, int j, int k) const {
+    if (!full(i, j, k)) return false;  // an empty cell has no floor (it is in no piece)
     const Int3 c{i, j, k};
     for (int axis = 0; axis < 3; ++axis)
         for (int s : {-1, +1}) {

@@ -34,7 +34,8 @@ public:
 
     bool full(int i, int j, int k) const { return p_.kappa_tr(i, j, k) > 0.0; }
     CellRow row(int i, int j, int k) const;
-    // Whether full cell (i, j, k) has a Marshak face (to an empty cell or the domain boundary).
+    // Whether full cell (i, j, k) has a Marshak face (to an empty cell or the domain boundary);
+    // false for an empty cell.
     bool has_marshak_face(int i, int j, int k) const;
     // Right-hand side r (index into p.Q0/p.G) at cell (i, j, k); 0 in empty cells.
     double rhs(int r, int i, int j, int k) const;
