@@ -30,10 +30,13 @@ public:
     nlohmann::json options() const override { return options_json(opt_); }
 
     // hypre's 7-point matrix, vectors and multigrid hierarchy, the right-hand sides and the per
-    // band fluence and flux: 8 (26 + 4 bands) bytes per local cell, calibrated on the default
-    // cloud (measured 306 bytes per cell at 3 bands; the solve covers only the cloud's box, so
-    // this is an upper bound elsewhere), and the escape flux of the sheets under lit faces (3 per
-    // right-hand side, counted per band). The flux limiter adds 21 values per cell: its copy of
+    // band fluence and flux: 8 (26 + 4 bands) bytes per local cell, and the escape flux of the
+    // sheets under lit faces (3 per right-hand side, counted per band). An upper bound: since the
+    // forty-fifth session U, F and the bands' fields are allocated after the solve and the
+    // problem is freed before the bands' fields, and the model's part of the peak (peak minus
+    // model single's, 1 rank, 3 bands, 2 right-hand sides, 9 lights) is 122 MiB on the default
+    // cloud and 185 MiB with a box filling its 96 x 96 x 64 cells, against 252 MiB here (before:
+    // 211 and 276 MiB, the box above this estimate). The flux limiter adds 21 values per cell: its copy of
     // the problem for one right-hand side (6), the previous U (1), lambda and its target (2),
     // the Anderson history (12: 5 pairs of differences, the last iterate and residual). SMG's
     // plane solvers and PETSc's copy of the system with BoomerAMG's hierarchy take more: measured
@@ -108,10 +111,16 @@ public:
         warn_if_cells_thick(d, m);
         out = DiffuseSolution{};
         out.closure = RadianceClosure::p1;  // the renderer draws the model's own P1 radiance
-        for (int b = 0; b < m.nbands(); ++b) {
-            out.fluence.emplace_back(d.local(), 1, 1, 0.0);
-            out.flux.emplace_back(d.local(), 1, 3, 0.0);
-        }
+        // The bands' fields are allocated once the first linear solve is done: hypre's matrix,
+        // vectors and hierarchy are then gone, and the phase's peak memory is the solve's
+        // (with U and F likewise, solve_diffusion.cpp, and the problem freed after its solve: the default
+        // cloud's peak on 1 rank went from 314 to 225 MiB, forty-fifth session).
+        const auto allocate_bands = [&] {
+            for (int b = static_cast<int>(out.fluence.size()); b < m.nbands(); ++b) {
+                out.fluence.emplace_back(d.local(), 1, 1, 0.0);
+                out.flux.emplace_back(d.local(), 1, 3, 0.0);
+            }
+        };
         // Superposition of the lights' colours needs a linear solve (not the flux limiter); the
         // sum of right-hand sides is clamped, not each of them (clamping is not linear).
         const bool linear = opt_.flux_limiter == "none";
@@ -139,11 +148,13 @@ public:
                     throw Error(fmt::format("{}: {}", band_names(group, m), e.what()));
                 }
             }();
+            p = diffusion::DiffusionProblem{};  // its sources and coefficients are used up
             label_systems(ctx.report, systems_before, g, group, m, ctx.light.lights);
             // Solved only where something scatters (an empty region, or no light: none).
             for (const auto& st : res.stats) solves += st.iterations > 0 ? 1 : 0;
             warn_if_negative(res.stats, group, m);
             ScopedTimer bands_timer(ctx.report, "bands");  // each band's fields from the solutions and the forward peak
+            allocate_bands();
             // The forward peak first (every band belongs to one group, so its fields are still 0
             // here), then the solutions, which are zero outside the solve region (its cells are
             // empty).
@@ -164,6 +175,7 @@ public:
         }
         {
             ScopedTimer t(ctx.report, "bands");
+            allocate_bands();  // (every band is in a group, so they are already)
             for (int b = 0; b < m.nbands(); ++b) {
                 exchange_halo(out.fluence[static_cast<size_t>(b)], d);
                 exchange_halo(out.flux[static_cast<size_t>(b)], d);

@@ -35,18 +35,25 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
         // Cap of the transport mean free path (diffusion_kernel.h): the option, or each piece's size.
         res.kappa_floor = transport_floor(d, p, res.region, opt.max_transport_length);
     }
-    for (size_t r = 0; r < nrhs; ++r) {
-        res.U.emplace_back(d.local(), 1, 1, 0.0);
-        res.flux.emplace_back(d.local(), 1, 3, 0.0);
-    }
     res.stats.resize(nrhs);
+    // U and F are allocated after the linear solve (below), when hypre's matrix, vectors and
+    // multigrid hierarchy are gone: the phase's peak memory is the solve's.
+    const auto allocate_fields = [&] {
+        for (size_t r = 0; r < nrhs; ++r) {
+            res.U.emplace_back(d.local(), 1, 1, 0.0);
+            res.flux.emplace_back(d.local(), 1, 3, 0.0);
+        }
+    };
 
     auto& rec = report.values()["diffusion"];
     rec["solver"] = opt.solver;
     rec["tolerance"] = opt.tolerance;
     rec["region"] = {{"lo", res.region.box.lo}, {"hi", res.region.box.hi},
                      {"cells", res.region.cells()}};
-    if (res.region.box.empty() || nrhs == 0) return res;  // nothing scatters, or nothing lights it
+    if (res.region.box.empty() || nrhs == 0) {  // nothing scatters, or nothing lights it
+        allocate_fields();
+        return res;
+    }
 
     rec["kappa_tr_floor"] = res.kappa_floor.largest;
     if (res.kappa_floor.pieces >= 0) rec["pieces"] = res.kappa_floor.pieces;
@@ -55,6 +62,7 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
                                 ? solve_with_petsc(d, assembler, p, res.region, opt, report)
                                 : solve_with_hypre(d, assembler, p, res.region, opt, report);
     ScopedTimer flux_timer(report, "flux");  // U on the local box, F = 4π(G - D grad U), clamping
+    allocate_fields();
     for (size_t r = 0; r < nrhs; ++r) {
         size_t n = 0;
         for_each_cell(lin.box, [&](int i, int j, int k) {
