@@ -2,8 +2,8 @@
 // (kappa_tr > 0) grown by `margin` cells and clipped to the domain; the whole axis along a
 // periodic axis. Cells outside are empty and carry no diffuse light in this model, so the
 // answer is the same as on the whole domain (the Marshak faces of the cloud do not change), and
-// the same for every margin: the default transport-length cap is taken from the cloud's own
-// bounding box, not from the grown region (test SolveRegionIsTheBoundingBoxPlusMargin).
+// the same for every margin: the default transport-length cap is taken from the bounding box of
+// each piece of cloud, not from the grown region (test SolveRegionIsTheBoundingBoxPlusMargin).
 #pragma once
 
 #include "solvers/diffusion/diffusion_problem.h"
