@@ -119,7 +119,8 @@ CloudPieces find_cloud_pieces(const Decomposition& d, const Field<double>& kappa
     };
     std::vector<std::int64_t> comp_label;
     std::vector<Extent> comp_extent;
-    Field<double> label(d.local(), 1, 1, -1.0);
+    const Box& own = d.local();
+    Field<double> label(box, 1, 1, -1.0);
     for_each_cell(box, [&](int i, int j, int k) {
         const std::int32_t c = local_index(i, j, k);
         const std::int32_t p = up[static_cast<size_t>(c)];
@@ -132,9 +133,12 @@ CloudPieces find_cloud_pieces(const Decomposition& d, const Field<double>& kappa
             up[static_cast<size_t>(c)] = up[static_cast<size_t>(p)];  // p's root
         }
         const std::int32_t q = compact(c);
-        label(i, j, k) = static_cast<double>(comp_label[static_cast<size_t>(q)]);
         Extent& e = comp_extent[static_cast<size_t>(q)];
         const int at[3] = {i, j, k};
+        // The label is read only across the faces of the rank's box (step 2).
+        if (at[0] == own.lo[0] || at[0] == own.hi[0] - 1 || at[1] == own.lo[1] || at[1] == own.hi[1] - 1 ||
+            at[2] == own.lo[2] || at[2] == own.hi[2] - 1)
+            label(i, j, k) = static_cast<double>(comp_label[static_cast<size_t>(q)]);
         for (int a = 0; a < 3; ++a) {
             e.b.lo[a] = std::min(e.b.lo[a], at[a]);
             e.b.hi[a] = std::max(e.b.hi[a], at[a] + 1);
@@ -144,22 +148,21 @@ CloudPieces find_cloud_pieces(const Decomposition& d, const Field<double>& kappa
 
     // 2. Joins across rank boundaries and periodic faces: the neighbours' labels in the ghost
     // layer, pairs gathered on every rank and united there.
-    exchange_halo(label, d);
+    exchange_halo(label, d, region);
     std::vector<double> pairs;
-    const Box& own = d.local();
-    for_each_cell(box, [&](int i, int j, int k) {
-        const double mine = label(i, j, k);
-        if (mine < 0.0) return;
-        const int at[3] = {i, j, k};
-        for (int a = 0; a < 3; ++a)
-            for (int side : {-1, 1}) {
-                if (side < 0 ? at[a] != own.lo[a] : at[a] != own.hi[a] - 1) continue;
+    for (int a = 0; a < 3; ++a)
+        for (int side : {-1, 1}) {  // the box's layers on the faces of the rank's box
+            const int v = side < 0 ? own.lo[a] : own.hi[a] - 1;
+            if (box.empty() || v < box.lo[a] || v >= box.hi[a]) continue;
+            for_each_cell(box.with_range(a, v, v + 1), [&](int i, int j, int k) {
+                const double mine = label(i, j, k);
+                if (mine < 0.0) return;
                 int nb[3] = {i, j, k};
                 nb[a] += side;
                 const double other = label(nb[0], nb[1], nb[2]);
                 if (other >= 0.0 && other != mine) pairs.insert(pairs.end(), {mine, other});
-            }
-    });
+            });
+        }
     const std::vector<double> all_pairs = gather_all(d.comm(), pairs);
     LabelSets joined;
     for (size_t p = 0; p + 1 < all_pairs.size(); p += 2)

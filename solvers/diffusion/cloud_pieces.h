@@ -24,8 +24,8 @@ struct CloudPieces {
 };
 
 // Collective over d.comm(). kappa_tr: owned cells of d.local() (ghosts not read); region: a box
-// that holds every full cell (SolveRegion::box). The same pieces, in the same order, on any
-// number of ranks.
+// that holds every full cell and is whole along the periodic axes (SolveRegion::box). The same
+// pieces, in the same order, on any number of ranks.
 CloudPieces find_cloud_pieces(const Decomposition& d, const Field<double>& kappa_tr, const Box& region);
 
 }  // namespace nimbus::diffusion

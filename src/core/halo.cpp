@@ -9,20 +9,20 @@
 
 namespace nimbus {
 
-void exchange_halo(Field<double>& f, const Decomposition& d) {
+namespace {
+
+// The exchange of both overloads: with each adjacent rank whose part of `within` is not empty,
+// when this rank's is not either (the decision is the same on both sides).
+void exchange_parts(Field<double>& f, const Decomposition& d, const Box& within) {
     const int g = f.ghost();
-    if (g == 0) return;
     const Box& own = f.owned();
-    // Every ghost comes from the adjacent rank: each box must be at least g cells thick. The
-    // boxes are known everywhere, so every rank throws alike (no rank left waiting).
-    for (int axis = 0; axis < 3; ++axis)
-        if (d.dims()[axis] > 1 && d.thinnest(axis) < g)
-            throw Error(fmt::format("a field with {} ghost layers needs every rank's box at least {} cells thick "
-                                    "along {}, but {} ranks split its {} cells into boxes of {}; use fewer ranks",
-                                    g, g, "xyz"[axis], d.dims()[axis], d.global().size(axis), d.thinnest(axis)));
+    const bool mine = !own.empty();
+    const auto partner = [&](int rank) {
+        return rank != MPI_PROC_NULL && mine && !d.box_of(rank).intersect(within).empty() ? rank : MPI_PROC_NULL;
+    };
     std::vector<double> send, recv;
     for (int axis = 0; axis < 3; ++axis) {
-        const int lo_nb = d.neighbor(axis, -1), hi_nb = d.neighbor(axis, +1);
+        const int lo_nb = partner(d.neighbor(axis, -1)), hi_nb = partner(d.neighbor(axis, +1));
         const int depth = std::min(g, own.size(axis));  // own.size < g only alone on a periodic axis
         for (int dir : {+1, -1}) {
             // dir = +1: send my high layers up, receive my low ghosts from below.
@@ -39,6 +39,33 @@ void exchange_halo(Field<double>& f, const Decomposition& d) {
             if (from != MPI_PROC_NULL) copy_cells<CopyMode::unpack>(f, rs, recv);
         }
     }
+}
+
+}  // namespace
+
+void exchange_halo(Field<double>& f, const Decomposition& d) {
+    const int g = f.ghost();
+    if (g == 0) return;
+    // Every ghost comes from the adjacent rank: each box must be at least g cells thick. The
+    // boxes are known everywhere, so every rank throws alike (no rank left waiting).
+    for (int axis = 0; axis < 3; ++axis)
+        if (d.dims()[axis] > 1 && d.thinnest(axis) < g)
+            throw Error(fmt::format("a field with {} ghost layers needs every rank's box at least {} cells thick "
+                                    "along {}, but {} ranks split its {} cells into boxes of {}; use fewer ranks",
+                                    g, g, "xyz"[axis], d.dims()[axis], d.global().size(axis), d.thinnest(axis)));
+    exchange_parts(f, d, d.global());
+}
+
+void exchange_halo(Field<double>& f, const Decomposition& d, const Box& within) {
+    // One layer: a part is then never thinner than the ghosts it sends (a part is at least one
+    // cell thick, or empty).
+    bool whole = true;  // along the periodic axes, where the wrap joins the two ends
+    for (int a = 0; a < 3; ++a)
+        whole = whole && (!d.periodic(a) || (within.lo[a] <= d.global().lo[a] && within.hi[a] >= d.global().hi[a]));
+    if (f.ghost() != 1 || f.owned() != d.local().intersect(within) || !whole)
+        throw Error("exchange_halo: a field on a part of the rank's box needs one ghost layer, owned = "
+                    "d.local() ∩ within, and `within` whole along the periodic axes");
+    exchange_parts(f, d, within);
 }
 
 void accumulate_halo(Field<double>& f, const Decomposition& d, int axis) {

@@ -60,6 +60,51 @@ TEST(Halo, GhostsDeeperThanTheThinnestBoxAreRefused) {
     }
 }
 
+// A field on the rank's part of a box `within` (exchange_halo's third argument): every ghost
+// inside `within` and the domain (or across a periodic wrap) gets the owner's value, the others
+// keep theirs; ranks whose part is empty take part without exchanging. Boxes that end inside a
+// rank, that miss whole ranks, and that span the grid; split along z or x; periodic or not.
+void check_part_halo(const Int3& dims, std::array<bool, 3> periodic, const Box& within) {
+    const Int3 n{7, 5, 9};
+    const Decomposition d(MPI_COMM_WORLD, n, dims, periodic);
+    Field<double> f(d.local().intersect(within), 1, 1, -1.0);
+    for_each_cell(f.owned(), [&](int i, int j, int k) { f(i, j, k) = code(i, j, k); });
+    exchange_halo(f, d, within);
+    if (f.owned().empty()) return;  // no part here: its "ghosts" are nobody's neighbours
+    for_each_cell(f.allocated(), [&](int i, int j, int k) {
+        int g[3] = {i, j, k};
+        bool inside = true;
+        for (int a = 0; a < 3; ++a) {
+            if (periodic[a]) g[a] = (g[a] % n[a] + n[a]) % n[a];
+            inside = inside && g[a] >= 0 && g[a] < n[a];
+        }
+        const bool filled = inside && within.contains(g[0], g[1], g[2]);
+        ASSERT_EQ(f(i, j, k), filled ? code(g[0], g[1], g[2]) : -1.0) << i << "," << j << "," << k;
+    });
+}
+
+TEST(Halo, PartsOfTheRanksBoxes) {
+    const int size = test::world_size();
+    const Box low{{1, 0, 0}, {6, 4, 3}};  // only the first rank's slab on 3 ranks along z
+    const Box middle{{0, 1, 2}, {7, 5, 7}};
+    const Box all{{0, 0, 0}, {7, 5, 9}};
+    for (const Int3 dims : {Int3{1, 1, size}, Int3{size, 1, 1}}) {
+        check_part_halo(dims, {false, false, false}, low);
+        check_part_halo(dims, {false, false, false}, middle);
+        check_part_halo(dims, {false, false, false}, all);
+        check_part_halo(dims, {true, false, false}, middle.with_range(0, 0, 7));  // whole along periodic x
+        check_part_halo(dims, {false, false, true}, middle.with_range(2, 0, 9));
+    }
+}
+
+// A part that is not whole along a periodic axis is refused (the wrap would join its ends).
+TEST(Halo, PartsMustBeWholeAlongPeriodicAxes) {
+    const Decomposition d(MPI_COMM_WORLD, {7, 5, 9}, {1, 1, 0}, {true, false, false});
+    const Box within{{1, 0, 0}, {6, 5, 9}};
+    Field<double> f(d.local().intersect(within), 1, 1, 0.0);
+    EXPECT_THROW(exchange_halo(f, d, within), Error);
+}
+
 // accumulate_halo along z: what each rank deposited in its z ghost layers lands, added, in the
 // owners' boundary layers; ghosts outside the domain are dropped and every ghost ends at 0.
 TEST(Halo, AccumulateAddsGhostDepositsIntoTheOwners) {
