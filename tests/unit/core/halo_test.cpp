@@ -13,6 +13,16 @@ namespace {
 
 double code(int i, int j, int k) { return i + 100.0 * j + 10000.0 * k; }
 
+// Whether ghost cell g is some rank's cell: g becomes that cell (wrapped along periodic axes).
+bool owned_cell(Int3& g, const Int3& n, const std::array<bool, 3>& periodic) {
+    bool inside = true;
+    for (int a = 0; a < 3; ++a) {
+        if (periodic[static_cast<size_t>(a)]) g[a] = (g[a] % n[a] + n[a]) % n[a];
+        inside = inside && g[a] >= 0 && g[a] < n[a];
+    }
+    return inside;
+}
+
 void check_halo(const Int3& dims, std::array<bool, 3> periodic, const Int3& n = {6, 5, 8}, int ghost = 2) {
     const Decomposition d(MPI_COMM_WORLD, n, dims, periodic);
     Field<double> f(d.local(), ghost, 2, -1.0);
@@ -22,12 +32,8 @@ void check_halo(const Int3& dims, std::array<bool, 3> periodic, const Int3& n = 
     });
     exchange_halo(f, d);
     for_each_cell(f.allocated(), [&](int i, int j, int k) {
-        int g[3] = {i, j, k};
-        bool inside = true;
-        for (int a = 0; a < 3; ++a) {
-            if (periodic[a]) g[a] = (g[a] % n[a] + n[a]) % n[a];
-            inside = inside && g[a] >= 0 && g[a] < n[a];
-        }
+        Int3 g{i, j, k};
+        const bool inside = owned_cell(g, n, periodic);
         const double want = inside ? code(g[0], g[1], g[2]) : -1.0;
         ASSERT_EQ(f(i, j, k, 0), want) << i << "," << j << "," << k;
         ASSERT_EQ(f(i, j, k, 1), inside ? -want : -1.0);
@@ -72,13 +78,8 @@ void check_part_halo(const Int3& dims, std::array<bool, 3> periodic, const Box& 
     exchange_halo(f, d, within);
     if (f.owned().empty()) return;  // no part here: its "ghosts" are nobody's neighbours
     for_each_cell(f.allocated(), [&](int i, int j, int k) {
-        int g[3] = {i, j, k};
-        bool inside = true;
-        for (int a = 0; a < 3; ++a) {
-            if (periodic[a]) g[a] = (g[a] % n[a] + n[a]) % n[a];
-            inside = inside && g[a] >= 0 && g[a] < n[a];
-        }
-        const bool filled = inside && within.contains(g[0], g[1], g[2]);
+        Int3 g{i, j, k};
+        const bool filled = owned_cell(g, n, periodic) && within.contains(g[0], g[1], g[2]);
         ASSERT_EQ(f(i, j, k), filled ? code(g[0], g[1], g[2]) : -1.0) << i << "," << j << "," << k;
     });
 }
