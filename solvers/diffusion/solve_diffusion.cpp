@@ -23,18 +23,21 @@ namespace {
 
 // One linear solve of p (all right-hand sides share the matrix). Its report entries
 // (diffusion.systems) name the right-hand side, first_rhs + r, and the flux limiter's iteration
-// (0: the P1 start) when limiter_iteration >= 0.
+// (0: the P1 start) when limiter_iteration >= 0. known_floor: the transport cap's floor of p's
+// full cells when the caller has it (the flux limiter's iterates keep the empty cells, so the
+// pieces); then res.kappa_floor stays empty.
 DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
                              const DiffusionOptions& opt, Report& report, size_t first_rhs = 0,
-                             int limiter_iteration = -1) {
+                             int limiter_iteration = -1, const TransportFloor* known_floor = nullptr) {
     const size_t nrhs = p.Q0.size();
     DiffusionResult res;
     {
         ScopedTimer t(report, "region");  // the solve region, and the cloud's pieces for the cap
         res.region = find_solve_region(d, p, opt.margin);
         // Cap of the transport mean free path (diffusion_kernel.h): the option, or each piece's size.
-        res.kappa_floor = transport_floor(d, p, res.region, opt.max_transport_length);
+        if (!known_floor) res.kappa_floor = transport_floor(d, p, res.region, opt.max_transport_length);
     }
+    const TransportFloor& floor = known_floor ? *known_floor : res.kappa_floor;
     res.stats.resize(nrhs);
     // U and F are allocated after the linear solve (below), when hypre's matrix, vectors and
     // multigrid hierarchy are gone: the phase's peak memory is the solve's.
@@ -55,9 +58,9 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
         return res;
     }
 
-    rec["kappa_tr_floor"] = res.kappa_floor.largest;
-    if (res.kappa_floor.pieces >= 0) rec["pieces"] = res.kappa_floor.pieces;
-    const Assembler assembler(p, res.kappa_floor);
+    rec["kappa_tr_floor"] = floor.largest;
+    if (floor.pieces >= 0) rec["pieces"] = floor.pieces;
+    const Assembler assembler(p, floor);
     LinearSolveOutput lin = opt.solver == "petsc"
                                 ? solve_with_petsc(d, assembler, p, res.region, opt, report)
                                 : solve_with_hypre(d, assembler, p, res.region, opt, report);
@@ -137,6 +140,7 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
     q.G = {p.G[r]};
     if (!p.escape_flux.empty()) q.escape_flux = {p.escape_flux[r]};
     DiffusionResult res = solve_linear(d, q, opt, report, r, 0);  // P1 with the cap: the first iterate
+    const TransportFloor floor = std::move(res.kappa_floor);      // the same for every iterate
     std::vector<double> history;
     double first_seconds = 0.0;
     int linear_iterations = res.stats[0].iterations;
@@ -161,7 +165,7 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
         for_each_cell(d.local(), [&](int i, int j, int k) {
             const double kt = p.kappa_tr(i, j, k);
             if (kt <= 0.0) return;
-            const double kc = std::max(q.kappa_tr(i, j, k), res.kappa_floor.at(i, j, k));
+            const double kc = std::max(q.kappa_tr(i, j, k), floor.at(i, j, k));
             const double* F = &res.flux[0](i, j, k);
             const double Fn = std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]);
             lambda.push_back(kt / (3.0 * q.kappa_tr(i, j, k)));
@@ -182,7 +186,7 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
         const Field<double> previous = res.U[0];
         // The cap stays: without it the Picard iteration oscillated (no convergence in 30
         // iterations) on a cube of optical thickness 0.2, where lambda -> 1/R everywhere.
-        res = solve_linear(d, q, opt, report, r, it + 1);
+        res = solve_linear(d, q, opt, report, r, it + 1, &floor);
         linear_iterations += res.stats[0].iterations;
         double local[2] = {0.0, 0.0}, global[2];
         for_each_cell(d.local(), [&](int i, int j, int k) {
