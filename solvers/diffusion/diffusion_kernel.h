@@ -44,36 +44,42 @@ struct FaceInput {
     double G_n = 0.0;         // neighbour's G component along this face's axis (W/m²/sr units of U)
 };
 
-// Result for one face: coupling to the neighbour (the off-diagonal entry is -coupling),
-// the diagonal and rhs contributions.
-struct FaceTerms {
-    double coupling = 0.0;
-    double diag = 0.0;
-    double rhs = 0.0;
-};
-
-inline double diffusion_coefficient(double kappa_tr, double kappa_floor) {
-    return 1.0 / (3.0 * (kappa_tr > kappa_floor ? kappa_tr : kappa_floor));
+// D's kappa: kappa_tr, or the cap's floor where kappa_tr is below it.
+inline double capped_kappa(double kappa_tr, double kappa_floor) {
+    return kappa_tr > kappa_floor ? kappa_tr : kappa_floor;
 }
 
-// Face of full cell P along an axis on side s (+1: high face, -1: low face). G_p is P's G
-// component along that axis. The outward normal of the face is s·e_axis.
-inline FaceTerms face_terms(double kappa_tr_p, double G_p, int s, const FaceInput& nb, double h) {
-    FaceTerms t;
-    if (nb.mirror) return t;  // F·n = 0: no term in the cell balance
-    if (nb.neighbor_full) {
-        const double D_f = diffusion_coefficient(0.5 * (kappa_tr_p + nb.kappa_tr_n), nb.kappa_floor);
-        const double G_f = 0.5 * (G_p + nb.G_n);
-        t.coupling = D_f;
-        t.diag = D_f;
-        t.rhs = -h * s * G_f;
-    } else {
-        const double D = diffusion_coefficient(kappa_tr_p, nb.kappa_floor);
-        const double n_dot_G = -s * G_p;  // inward normal n = -s e_axis
-        t.diag = 2.0 * D * h / (4.0 * D + h);
-        t.rhs = n_dot_G * h * h / (4.0 * D + h);
-    }
-    return t;
+// Face of full cell P along an axis on side s (+1: high face, -1: low face); the outward normal
+// is s·e_axis. Every term of the face is built on its coefficient c, the face's share of the
+// diagonal (one division per face, which the row and every right-hand side share):
+//   interior face  c = D_f = 1 / (3 kappa_f),  kappa_f from the mean of the two kappa_tr;
+//   Marshak face   c = 2 D h / (4D + h) = 2h / (4 + 3 kappa h),  kappa = P's capped kappa_tr;
+//   mirror         c = 0.
+// An interior face also couples P to the neighbour with -c.
+inline double face_coefficient(double kappa_tr_p, const FaceInput& nb, double h) {
+    if (nb.mirror) return 0.0;  // F·n = 0: no term in the cell balance
+    if (nb.neighbor_full) return 1.0 / (3.0 * capped_kappa(0.5 * (kappa_tr_p + nb.kappa_tr_n), nb.kappa_floor));
+    return 2.0 * h / (4.0 + 3.0 * capped_kappa(kappa_tr_p, nb.kappa_floor) * h);
+}
+
+// The face's term of P's right-hand side, G_p being P's G component along the face's axis and
+// c its face_coefficient: -h s G_f inside (G_f the mean of the two cells'), (n·G) h² / (4D + h)
+// = c (3/2) kappa h (n·G) at a Marshak face (inward normal n = -s e_axis).
+inline double face_rhs(double kappa_tr_p, double G_p, int s, const FaceInput& nb, double c, double h) {
+    if (nb.mirror) return 0.0;
+    if (nb.neighbor_full) return -h * s * 0.5 * (G_p + nb.G_n);
+    return c * 1.5 * capped_kappa(kappa_tr_p, nb.kappa_floor) * h * (-s * G_p);
+}
+
+// Fluence-per-4π flux through the face, positive along +axis, from the solved U:
+// interior face  phi = G_f - D_f (U_hi - U_lo)/h; Marshak face phi·n_out = U_f / 2 with
+// U_f = (4D U_P - 2h n·G)/(4D + h) = c (2 U_P / h - 3 kappa n·G).
+inline double face_flux(double kappa_tr_p, double G_p, double U_p, int s, const FaceInput& nb, double U_n, double c,
+                        double h) {
+    if (nb.mirror) return 0.0;
+    if (nb.neighbor_full) return 0.5 * (G_p + nb.G_n) - c * s * (U_n - U_p) / h;
+    const double U_f = c * (2.0 * U_p / h - 3.0 * capped_kappa(kappa_tr_p, nb.kappa_floor) * (-s * G_p));
+    return s * 0.5 * U_f;
 }
 
 // The Langevin function coth y - 1/y, y >= 0: e^{-2 y x / h} on [-h/2, h/2] has its centroid
@@ -100,22 +106,6 @@ inline double marshak_escape(double offset, double D, double sigma_a, double h) 
     // Both sinh and cosh over e^{k l} / 2, finite for any k l.
     const double e = std::exp(-2.0 * k * l);
     return std::exp(k * (offset - l)) * -std::expm1(-2.0 * k * offset) / (1.0 - e + 2.0 * D * k * (1.0 + e));
-}
-
-// Fluence-per-4π flux through a face of full cell P, positive along +axis, from the solved U:
-// interior face  phi = G_f - D_f (U_hi - U_lo)/h; Marshak face phi·n_out = U_f / 2.
-inline double face_flux(double kappa_tr_p, double G_p, double U_p, int s, const FaceInput& nb,
-                        double U_n, double h) {
-    if (nb.mirror) return 0.0;
-    if (nb.neighbor_full) {
-        const double D_f = diffusion_coefficient(0.5 * (kappa_tr_p + nb.kappa_tr_n), nb.kappa_floor);
-        const double G_f = 0.5 * (G_p + nb.G_n);
-        return G_f - D_f * s * (U_n - U_p) / h;
-    }
-    const double D = diffusion_coefficient(kappa_tr_p, nb.kappa_floor);
-    const double n_dot_G = -s * G_p;
-    const double U_f = (4.0 * D * U_p - 2.0 * h * n_dot_G) / (4.0 * D + h);
-    return s * 0.5 * U_f;
 }
 
 }  // namespace nimbus::diffusion

@@ -30,30 +30,26 @@ LinearSolveOutput solve_with_hypre(const Decomposition& d, const Assembler& asse
     hypre::Grid grid(comm, box, period);
     hypre::SymmetricStencil7 stencil;
     hypre::Matrix A(comm, grid, stencil);
+    std::vector<std::vector<double>> b_values(nrhs, std::vector<double>(ncell));
     {
-        std::vector<double> values(ncell * hypre::SymmetricStencil7::kEntries);
+        std::vector<double> values(ncell * hypre::SymmetricStencil7::kEntries), b_cell(nrhs);
         size_t n = 0;
         for_each_cell(box, [&](int i, int j, int k) {
-            const CellRow row = assembler.row(i, j, k);
+            const CellRow row = assembler.row(i, j, k, b_cell);
+            for (size_t r = 0; r < nrhs; ++r) b_values[r][n] = b_cell[r];
             // Couplings to cells outside the grid are zero by construction: a full neighbour
             // is always inside the region, and the row of an empty cell has none.
-            values[n++] = row.diag;
-            values[n++] = -row.coupling[kXm];
-            values[n++] = -row.coupling[kYm];
-            values[n++] = -row.coupling[kZm];
+            double* v = &values[n++ * hypre::SymmetricStencil7::kEntries];
+            v[0] = row.diag;
+            v[1] = -row.coupling[kXm];
+            v[2] = -row.coupling[kYm];
+            v[3] = -row.coupling[kZm];
         });
         A.set_box_values(box, values);
     }
     A.assemble();
-    std::vector<std::vector<double>> b_values(nrhs, std::vector<double>(ncell));
     std::vector<double> b_norm(nrhs);
-    for (size_t r = 0; r < nrhs; ++r) {
-        size_t n = 0;
-        for_each_cell(box, [&](int i, int j, int k) {
-            b_values[r][n++] = assembler.rhs(static_cast<int>(r), i, j, k);
-        });
-        b_norm[r] = hypre::global_norm(b_values[r], comm);
-    }
+    for (size_t r = 0; r < nrhs; ++r) b_norm[r] = hypre::global_norm(b_values[r], comm);
     hypre::Vector b(comm, grid), x(comm, grid), res(comm, grid);
     b.set_box_values(box, b_values[0]);
     b.assemble();
