@@ -83,7 +83,7 @@ DiffusionResult solve_linear(const Decomposition& d, const DiffusionProblem& p,
         SolveStats& st = res.stats[r];
         std::int64_t neg[2] = {0, 0}, gneg[2];
         double umin[2] = {0.0, 0.0}, gumin[2], umax = 0.0;
-        for_each_cell(d.local(), [&](int i, int j, int k) {
+        for_each_cell(res.region.box.intersect(d.local()), [&](int i, int j, int k) {  // U = 0 outside
             double& u = res.U[r](i, j, k);
             umax = std::max(umax, u);
             if (u >= 0.0) return;

@@ -89,22 +89,26 @@ double LightTransport::transmittance_beyond(const Decomposition& d, const Field<
 LightTransport::CellProfile LightTransport::profile(const Decomposition& d, const Field<double>& rho, int light,
                                                     double h, int i, int j, int k) const {
     const Field<double>& tau = tau_rho[static_cast<size_t>(light)];
+    // The neighbours at the centre's element ± the fields' strides (both hold the ghost layer):
+    // reading each by (i, j, k) cost a third of FirstScatterMeans' pass on the bench cumulus at
+    // 64³ (4.1 -> 2.9 ms, 1 rank).
+    const double* const tp = &tau(i, j, k);
+    const double* const rp = &rho(i, j, k);
     CellProfile p;
     p.w = lights[static_cast<size_t>(light)].w;
-    p.tau = tau(i, j, k);
-    p.rho = rho(i, j, k);
+    p.tau = *tp;
+    p.rho = *rp;
     p.h = h;
     const double tc = p.tau, rc = p.rho;
     const int c[3] = {i, j, k};
     const Box& dom = d.global();
     Vec3 g;  // ∇tau_rho (density / metre)
     for (int a = 0; a < 3; ++a) {
-        int lo[3] = {i, j, k}, hi[3] = {i, j, k};
-        --lo[a], ++hi[a];
+        const std::ptrdiff_t st = tau.stride(a), sr = rho.stride(a);
         // Both neighbours are allocated (the ghost layer); they count only inside the domain.
         const bool in_lo = d.periodic(a) || c[a] > dom.lo[a], in_hi = d.periodic(a) || c[a] + 1 < dom.hi[a];
-        const double r_lo = rho(lo[0], lo[1], lo[2]), r_hi = rho(hi[0], hi[1], hi[2]);
-        const double t_lo = tau(lo[0], lo[1], lo[2]), t_hi = tau(hi[0], hi[1], hi[2]);
+        const double r_lo = rp[-sr], r_hi = rp[sr];
+        const double t_lo = tp[-st], t_hi = tp[st];
         // A neighbour serves if it is in the domain and, when this cell has density, has some too.
         const bool use_lo = in_lo && (rc == 0.0 || r_lo > 0.0), use_hi = in_hi && (rc == 0.0 || r_hi > 0.0);
         double v = 0.0;
@@ -130,11 +134,8 @@ double LightTransport::transmittance_mean(const Decomposition& d, const Field<do
     return profile(d, rho, light, h, i, j, k).mean(sigma_t);
 }
 
-double LightTransport::forward_peak_mean(const Decomposition& d, const Field<double>& rho, int light,
-                                         double sigma_t, double sigma_scaled, double h, int i, int j, int k) const {
-    const double tau = tau_rho[static_cast<size_t>(light)](i, j, k);
-    if (tau == 0.0) return 0.0;
-    if (!(rho(i, j, k) > 0.0)) return std::exp(-sigma_scaled * tau) - std::exp(-sigma_t * tau);
+double LightTransport::forward_peak_in_medium(const Decomposition& d, const Field<double>& rho, int light,
+                                              double sigma_t, double sigma_scaled, double h, int i, int j, int k) const {
     CellProfile p = profile(d, rho, light, h, i, j, k);
     // tau_rho >= 0 everywhere: the profile's least value in the cube, tau - (h/2) Σ|g_a|, is
     // held at 0 by scaling the gradient (exact profiles, under a plane face, reach 0 at most). On

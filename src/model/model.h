@@ -79,12 +79,22 @@ struct LightTransport {
     // kept (across the light it varies as a shadow does; the means there tripled the cost of the
     // diffusion model's band fields on the default cloud, 0.04 -> 0.15 s). 0 where the light has
     // crossed no medium (tau_rho = 0 at the centre). Not scaled by FirstScatterMeans' bound.
+    // Inline: the empty cells' answer is a lookup or two exps (on the bench cumulus at 64³, 230 000
+    // empty cells against 32 000 full ones, the call per cell cost the diffusion model ~1 ms).
     double forward_peak_mean(const Decomposition& d, const Field<double>& rho, int light, double sigma_t,
-                             double sigma_scaled, double h, int i, int j, int k) const;
+                             double sigma_scaled, double h, int i, int j, int k) const {
+        const double tau = tau_rho[static_cast<size_t>(light)](i, j, k);
+        if (tau == 0.0) return 0.0;
+        if (!(rho(i, j, k) > 0.0)) return std::exp(-sigma_scaled * tau) - std::exp(-sigma_t * tau);
+        return forward_peak_in_medium(d, rho, light, sigma_t, sigma_scaled, h, i, j, k);
+    }
     // Reduced-incident fluence ∫ I_ri dw = Σ E0 T (W/m²) in band b at cell (i, j, k).
     double fluence_reduced(const Medium& m, int b, int i, int j, int k) const;
 
 private:
+    // forward_peak_mean in a cell with density lit by the light (tau_rho > 0).
+    double forward_peak_in_medium(const Decomposition& d, const Field<double>& rho, int light, double sigma_t,
+                                  double sigma_scaled, double h, int i, int j, int k) const;
     // What transmittance_mean reads around a cell, once for any sigma_t: tau_rho at the centre,
     // its gradient across the cell (density / metre), and tau_rho beyond each face the light
     // enters by with no medium beyond it (0 at the domain's face; -1: medium there, parallel
