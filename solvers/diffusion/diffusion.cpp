@@ -156,10 +156,11 @@ public:
             ScopedTimer bands_timer(ctx.report, "bands");  // each band's fields from the solutions and the forward peak
             allocate_bands();
             // The forward peak first (every band belongs to one group, so its fields are still 0
-            // here), then the solutions, which are zero outside the solve region (its cells are
-            // empty).
+            // here), then the solutions, which are zero in empty cells (all cells outside the
+            // solve region, and 74% of it on the bench cumulus at 64³).
             diffusion::add_forward_peak(d, m, ctx.light, group, opt_.delta_scaling, out.fluence, out.flux);
             for_each_cell(res.region.box.intersect(d.local()), [&](int i, int j, int k) {
+                if (!(m.rho(i, j, k) > 0.0)) return;
                 for (const auto& use : group.bands) {
                     double u = 0.0, f[3] = {0.0, 0.0, 0.0};
                     for (const auto& t : use.terms) {
