@@ -72,9 +72,8 @@ double Assembler::rhs(int r, int i, int j, int k, const CellFaces& f) const {
     for (int e = 0; e < 6; ++e) {
         if (f.skip[static_cast<size_t>(e)]) continue;
         const int axis = e / 2, s = e % 2 == 0 ? -1 : 1;
-        FaceInput in = f.in[static_cast<size_t>(e)];
-        if (in.neighbor_full) in.G_n = G_eff(g[s * G.stride(axis) + axis], in.kappa_tr_n, f.floor);
-        b += face_rhs(f.kt, G_eff(g[axis], f.kt, f.floor), s, in, f.coef[static_cast<size_t>(e)], h);
+        b += face_rhs(f.kt, G_eff(g[axis], f.kt, f.floor), s, with_neighbor_G(G, g, f, e),
+                      f.coef[static_cast<size_t>(e)], h);
     }
     return b;
 }
@@ -96,12 +95,8 @@ Vec3 Assembler::flux(int r, const Field<double>& U, int i, int j, int k) const {
                 continue;
             }
             const int s = e % 2 == 0 ? -1 : 1;
-            FaceInput in = f.in[static_cast<size_t>(e)];
-            double Un = 0.0;
-            if (in.neighbor_full) {
-                in.G_n = G_eff(g[s * G.stride(axis) + axis], in.kappa_tr_n, f.floor);
-                Un = u[s * U.stride(axis)];
-            }
+            const FaceInput in = with_neighbor_G(G, g, f, e);
+            const double Un = in.neighbor_full ? u[s * U.stride(axis)] : 0.0;
             sum += face_flux(f.kt, Gp, *u, s, in, Un, f.coef[static_cast<size_t>(e)], h);
         }
         if (!p_.escape_flux.empty()) sum += p_.escape_flux[static_cast<size_t>(r)](i, j, k, axis);

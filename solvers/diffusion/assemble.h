@@ -71,6 +71,14 @@ private:
         std::array<bool, 6> skip{};
     };
     CellFaces faces(int i, int j, int k) const;
+    // Face e of f with the neighbour's G_n (0 across an empty cell), g pointing at the cell's
+    // components in G.
+    static FaceInput with_neighbor_G(const Field<double>& G, const double* g, const CellFaces& f, int e) {
+        FaceInput in = f.in[static_cast<size_t>(e)];
+        const int axis = e / 2, s = e % 2 == 0 ? -1 : 1;
+        if (in.neighbor_full) in.G_n = G_eff(g[s * G.stride(axis) + axis], in.kappa_tr_n, f.floor);
+        return in;
+    }
     // Right-hand side r of the cell whose faces are f.
     double rhs(int r, int i, int j, int k, const CellFaces& f) const;
     const DiffusionProblem& p_;
