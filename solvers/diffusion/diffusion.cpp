@@ -33,10 +33,11 @@ public:
     // band fluence and flux: 8 (26 + 4 bands) bytes per local cell, and the escape flux of the
     // sheets under lit faces (3 per right-hand side, counted per band). An upper bound: since the
     // forty-fifth session U, F and the bands' fields are allocated after the solve and the
-    // problem is freed before the bands' fields, and the model's part of the peak (peak minus
-    // model single's, 1 rank, 3 bands, 2 right-hand sides, 9 lights) is 122 MiB on the default
-    // cloud and 185 MiB with a box filling its 96 x 96 x 64 cells, against 252 MiB here (before:
-    // 211 and 276 MiB, the box above this estimate). The flux limiter adds 21 values per cell: its copy of
+    // problem is freed before the bands' fields, and since the forty-eighth session the
+    // right-hand sides live on the cloud's bounding box (DiffusionProblem::rhs_within): the
+    // model's part of the peak (peak minus model single's, 1 rank, 3 bands, 2 right-hand sides,
+    // 9 lights, no output; README, "Usage") is 93 MiB on the default cloud (123 before) and 185
+    // MiB with a box filling its 96 x 96 x 64 cells, against 252 MiB here. The flux limiter adds 21 values per cell: its copy of
     // the problem for one right-hand side (6), the previous U (1), lambda and its target (2),
     // the Anderson history (12: 5 pairs of differences, the last iterate and residual). SMG's
     // plane solvers and PETSc's copy of the system with BoomerAMG's hierarchy take more: measured

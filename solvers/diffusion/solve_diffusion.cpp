@@ -182,7 +182,7 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
             for (int c = 0; c < 3; ++c) q.G[0](i, j, k, c) = 3.0 * l * p.G[r](i, j, k, c);
         });
         exchange_halo(q.kappa_tr, d);
-        exchange_halo(q.G[0], d);
+        exchange_rhs_halo(q, q.G[0], d);
         const Field<double> previous = res.U[0];
         // The cap stays: without it the Picard iteration oscillated (no convergence in 30
         // iterations) on a cube of optical thickness 0.2, where lambda -> 1/R everywhere.

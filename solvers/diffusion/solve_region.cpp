@@ -6,6 +6,7 @@
 
 #include "solvers/diffusion/cloud_pieces.h"
 #include "src/core/bounding_box.h"
+#include "src/core/halo.h"
 
 namespace nimbus::diffusion {
 
@@ -21,6 +22,11 @@ SolveRegion find_solve_region(const Decomposition& d, const DiffusionProblem& p,
         r.box.hi[a] = static_cast<int>(std::min<std::int64_t>(p.n[a], std::int64_t{r.cloud.hi[a]} + margin));
     }
     return r;
+}
+
+void exchange_rhs_halo(const DiffusionProblem& p, Field<double>& G, const Decomposition& d) {
+    if (p.rhs_within.empty()) exchange_halo(G, d);
+    else exchange_halo(G, d, p.rhs_within);
 }
 
 double default_transport_length(const Box& cloud, const DiffusionProblem& p) {

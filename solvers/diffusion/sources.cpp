@@ -13,6 +13,7 @@
 
 #include "solvers/diffusion/delta_scaling.h"
 #include "solvers/diffusion/diffusion_kernel.h"
+#include "solvers/diffusion/solve_region.h"
 #include "src/core/halo.h"
 
 namespace nimbus::diffusion {
@@ -107,9 +108,12 @@ DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const Lig
             }
         return false;
     };
+    // The right-hand sides' fields on the full cells' bounding box (DiffusionProblem::rhs_within).
+    if (!group.rhs_weights.empty()) p.rhs_within = find_solve_region(d, p, 0).box;
+    const Box own = p.rhs_within.empty() ? d.local() : d.local().intersect(p.rhs_within);
     for (const std::vector<double>& weight : group.rhs_weights) {
-        Field<double> Q0(d.local(), 0, 1, 0.0), G(d.local(), 1, 3, 0.0), escape(d.local(), 0, 3, 0.0);
-        for_each_cell(d.local(), [&](int i, int j, int k) {
+        Field<double> Q0(own, 0, 1, 0.0), G(own, 1, 3, 0.0), escape(own, 0, 3, 0.0);
+        for_each_cell(own, [&](int i, int j, int k) {
             if (p.kappa_tr(i, j, k) <= 0.0) return;
             const double rho = m.rho(i, j, k), h = m.grid.h;
             const SheetCell cell{s.sigma_t * rho * h, 1.0 / (3.0 * p.kappa_tr(i, j, k)), p.sigma_a(i, j, k), h};
@@ -144,7 +148,7 @@ DiffusionProblem make_problem(const Decomposition& d, const Medium& m, const Lig
                 escape(i, j, k, c) = rho * q0 * left_flux[c] * h;
             }
         });
-        exchange_halo(G, d);
+        exchange_rhs_halo(p, G, d);
         p.Q0.push_back(std::move(Q0));
         p.G.push_back(std::move(G));
         p.escape_flux.push_back(std::move(escape));

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 
+#include "src/core/bounding_box.h"
 #include "src/core/log.h"
 #include "src/physics/phase.h"
 
@@ -226,7 +227,11 @@ FirstScatterMeans::FirstScatterMeans(const LightTransport& lt, const Decompositi
     int nused = 0;
     for (size_t l = 0; l < nl; ++l) nused += used(l) ? 1 : 0;
     if (nused > 0 && nused <= kMaxKeptLights) {
-        kept_ = Field<double>(own, 0, nused, 0.0);
+        // On the bounding box of this rank's cells with density, the only cells whose means
+        // are kept (on the default cloud, 1 rank, 36% of the box: 9 lights' means on the whole
+        // box were 42 MB, and the pass 1.5-1.8x slower on this machine, which first touched them).
+        kept_ = Field<double>(local_bounding_box(own, [&](int i, int j, int k) { return rho(i, j, k) > 0.0; }), 0,
+                              nused, 0.0);
         kept_slot_.assign(nl, -1);
         for (size_t l = 0, slot = 0; l < nl; ++l)
             if (used(l)) kept_slot_[l] = static_cast<int>(slot++);

@@ -141,10 +141,10 @@ struct FirstScatterBound {
 // cannot see: under a grazing sun over periodic x/y (w_z = -0.016) the cells took 1.9x the
 // beam. Holds references to lt, d and rho, which must outlive it. Collective construction.
 //
-// The pass that sums the means keeps them (one double per used light and owned cell, for at most
-// kMaxKeptLights used lights), so that the model's own pass over the cells reads them instead of
-// computing each a second time: on the bench cumulus at 128³ the second computation was 0.027 s
-// of diffusion's 0.079 s sources step.
+// The pass that sums the means keeps them (one double per used light and cell of the bounding
+// box of the rank's cells with density, for at most kMaxKeptLights used lights), so that the
+// model's own pass over the cells reads them instead of computing each a second time: on the
+// bench cumulus at 128³ the second computation was 0.027 s of diffusion's 0.079 s sources step.
 class FirstScatterMeans {
 public:
     static constexpr int kMaxKeptLights = 16;

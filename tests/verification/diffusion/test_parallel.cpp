@@ -10,6 +10,8 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
+#include <numbers>
 #include <optional>
 #include <string>
 
@@ -17,6 +19,9 @@
 #include "solvers/diffusion/diffusion.h"
 #include "src/core/error.h"
 #include "solvers/diffusion/hypre_struct.h"
+#include "solvers/diffusion/solve_diffusion.h"
+#include "solvers/diffusion/sources.h"
+#include "src/physics/band_groups.h"
 #include "src/scene/medium.h"
 #include "tests/support/expect_collective_error.h"
 #include "tests/support/mpi_test.h"
@@ -331,6 +336,65 @@ TEST(DiffusionParallel, SolveRegionIsTheBoundingBoxPlusMargin) {
     }
     // The cumulus does not fill the grid: the region is a real restriction.
     EXPECT_LT((hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]), kN * kN * kN);
+}
+
+
+// make_problem puts the right-hand sides' fields (Q0, G, escape flux) on the rank's part of the
+// full cells' bounding box (DiffusionProblem::rhs_within), G's ghost layer filled across ranks
+// within it: the solution is the same as with the fields on the whole rank box.
+TEST(DiffusionParallel, RightHandSidesLiveOnTheCloudsBox) {
+    Box cloud{{kN, kN, kN}, {0, 0, 0}};
+    for_each_cell(Box{{0, 0, 0}, {kN, kN, kN}}, [&](int i, int j, int k) {
+        if (!(cumulus(i, j, k) > 0.0)) return;
+        const int c[3] = {i, j, k};
+        for (int a = 0; a < 3; ++a) cloud.lo[a] = std::min(cloud.lo[a], c[a]), cloud.hi[a] = std::max(cloud.hi[a], c[a] + 1);
+    });
+    ASSERT_LT(cloud.cells(), kN * kN * kN);  // a real restriction
+    Decomposition d(MPI_COMM_WORLD, {kN, kN, kN});
+    const Medium m = test::make_medium(d, kH, kBand, cumulus);
+    const LightTransport light = test::column_light(d, kH, kSun, 1.0, cumulus);
+    const auto groups = group_bands(m.bands, term_strengths(light.lights, {}, m.nbands()));
+    const diffusion::DiffusionProblem p = diffusion::make_problem(d, m, light, {}, groups[0], true);
+    EXPECT_EQ(p.rhs_within, cloud);
+    const Box own = d.local().intersect(cloud);
+    ASSERT_EQ(p.Q0.size(), 1u);
+    EXPECT_EQ(p.Q0[0].owned(), own);
+    EXPECT_EQ(p.G[0].owned(), own);
+    EXPECT_EQ(p.G[0].ghost(), 1);
+    EXPECT_EQ(p.escape_flux[0].owned(), own);
+    // The same problem with its right-hand side copied onto the whole rank box.
+    diffusion::DiffusionProblem whole = p;
+    whole.rhs_within = Box{};
+    whole.Q0 = {Field<double>(d.local(), 0, 1, 0.0)};
+    whole.G = {Field<double>(d.local(), 1, 3, 0.0)};
+    whole.escape_flux = {Field<double>(d.local(), 0, 3, 0.0)};
+    double q0_sum = 0.0;
+    for_each_cell(d.local(), [&](int i, int j, int k) {
+        if (!(p.kappa_tr(i, j, k) > 0.0)) return;
+        ASSERT_TRUE(own.contains(i, j, k)) << i << " " << j << " " << k;
+        whole.Q0[0](i, j, k) = p.Q0[0](i, j, k);
+        q0_sum += p.Q0[0](i, j, k);
+        for (int c = 0; c < 3; ++c) {
+            whole.G[0](i, j, k, c) = p.G[0](i, j, k, c);
+            whole.escape_flux[0](i, j, k, c) = p.escape_flux[0](i, j, k, c);
+        }
+    });
+    EXPECT_GT(test::global_sum(q0_sum, MPI_COMM_WORLD), 0.0);
+    diffusion::exchange_rhs_halo(whole, whole.G[0], d);
+    DiffusionOptions opt;
+    opt.tolerance = 1e-10;
+    Report r1, r2;
+    const diffusion::DiffusionResult a = diffusion::solve_diffusion(d, p, opt, r1);
+    const diffusion::DiffusionResult b = diffusion::solve_diffusion(d, whole, opt, r2);
+    // The same system and right-hand side: the same iterates, to round-off.
+    const auto [diff, umax] = test::max_diff(a.U[0], b.U[0], d.local(), MPI_COMM_WORLD);
+    EXPECT_GT(umax, 0.0);
+    EXPECT_LE(diff, 1e-14 * umax);
+    double fdiff = 0.0;
+    for_each_cell(d.local(), [&](int i, int j, int k) {
+        for (int c = 0; c < 3; ++c) fdiff = std::max(fdiff, std::abs(a.flux[0](i, j, k, c) - b.flux[0](i, j, k, c)));
+    });
+    EXPECT_LE(test::global_max(fdiff, MPI_COMM_WORLD), 1e-14 * 4.0 * std::numbers::pi * umax / kH);
 }
 
 }  // namespace
