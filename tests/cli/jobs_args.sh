@@ -26,6 +26,10 @@ expect "bench_foundation.sh: N must be a whole number >= 1, not 'x'" bash jobs/b
 expect "bench_lpm.sh: missing /nonexistent/bin/bench_lpm" bash jobs/bench_lpm.sh /nonexistent
 expect "bench_montecarlo.sh: photons must be a whole number >= 1, not 'abc'" bash jobs/bench_montecarlo.sh "$build" abc 1
 expect "bench_montecarlo.sh: the reference nimbus '/nonexistent' is not an executable" bash jobs/bench_montecarlo.sh "$build" 1000 1 /nonexistent
+expect "bench_hugepages.sh: repeats must be a whole number >= 1, not '0'" bash jobs/bench_hugepages.sh "$build" 0
+expect "bench_hugepages.sh: ranks must be a whole number >= 1, not 'two'" bash jobs/bench_hugepages.sh "$build" 1 two
+expect "bench_hugepages.sh: unknown model 'nosuch'" env MODELS="dom nosuch" bash jobs/bench_hugepages.sh "$build" 1 1
+expect "bench_hugepages.sh: missing /nonexistent/bin/nimbus" bash jobs/bench_hugepages.sh /nonexistent
 # A nimbus that fails: the script stops with its log, not with empty rows.
 expect "bench_montecarlo.sh: /bin/false on 1 rank(s) failed" bash jobs/bench_montecarlo.sh "$build" 1000 1 /bin/false
 # study.py: a model nimbus does not know is refused before the reference run (a reference of
