@@ -37,13 +37,13 @@ public:
     // right-hand sides live on the cloud's bounding box (DiffusionProblem::rhs_within): the
     // model's part of the peak (peak minus model single's, 1 rank, 3 bands, 2 right-hand sides,
     // 9 lights, no output; README, "Usage") is 93 MiB on the default cloud (123 before) and 185
-    // MiB with a box filling its 96 x 96 x 64 cells, against 252 MiB here. The flux limiter adds 21 values per cell: its copy of
-    // the problem for one right-hand side (6), the previous U (1), lambda and its target (2),
-    // the Anderson history (12: 5 pairs of differences, the last iterate and residual). SMG's
-    // plane solvers and PETSc's copy of the system with BoomerAMG's hierarchy take more: measured
-    // on the default cloud (1 rank, peak memory against pfmg-pcg's 292 MiB): smg-pcg +100 MiB,
-    // smg +94, petsc +144, i.e. 23 and 33 values per cell (a QA finding: the check counted
-    // pfmg-pcg's alone).
+    // MiB with a box filling its 96 x 96 x 64 cells, against 252 MiB here. The flux limiter adds
+    // 21 values per cell: its copy of the problem for one right-hand side (6), the previous U
+    // (1), lambda and its target (2), the Anderson history (12: 5 pairs of differences, the last
+    // iterate and residual). SMG's plane solvers and PETSc's copy of the system with BoomerAMG's
+    // hierarchy take more: measured on the default cloud (1 rank, peak memory against pfmg-pcg's
+    // 292 MiB): smg-pcg +100 MiB, smg +94, petsc +144, i.e. 23 and 33 values per cell (a QA
+    // finding: the check counted pfmg-pcg's alone).
     double memory_bytes(const Scene& s, const Decomposition& d, int nlights) const override {
         const double limiter = opt_.flux_limiter == "none" ? 0.0 : 21.0;
         const double solver = opt_.solver.rfind("smg", 0) == 0 ? 23.0 : opt_.solver == "petsc" ? 33.0 : 0.0;

@@ -229,7 +229,8 @@ FirstScatterMeans::FirstScatterMeans(const LightTransport& lt, const Decompositi
     if (nused > 0 && nused <= kMaxKeptLights) {
         // On the bounding box of this rank's cells with density, the only cells whose means
         // are kept (on the default cloud, 1 rank, 36% of the box: 9 lights' means on the whole
-        // box were 42 MB, and the pass 1.5-1.8x slower on this machine, which first touched them).
+        // box were 42 MB, and the pass 1.5-1.8x slower with 4 KiB pages on this machine, which
+        // first touched them).
         kept_ = Field<double>(local_bounding_box(own, [&](int i, int j, int k) { return rho(i, j, k) > 0.0; }), 0,
                               nused, 0.0);
         kept_slot_.assign(nl, -1);
