@@ -31,3 +31,6 @@ ratio() {  # ratio a b [digits]; a and b may carry blanks (table cells)
   fi
   awk -v a="$a" -v b="$b" -v d="${3:-2}" 'BEGIN { printf "%.*f", d, a / b }'
 }
+
+# median of the numbers on stdin, one per line (the mean of the middle two for an even count).
+median() { sort -g | awk '{ v[NR] = $1 } END { print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2 }'; }

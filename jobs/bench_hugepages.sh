@@ -2,8 +2,8 @@
 # Large allocations on 4 KiB pages against transparent huge pages (GLIBC_TUNABLES=
 # glibc.malloc.hugetlb=1, which jobs/env.sh sets): whole `nimbus run`s of the default scene per
 # model on NP ranks, the two settings alternating, `repeats` times each. Prints one markdown row
-# per model: medians of the run's total and model-phase seconds and of the page faults of rank 0's
-# process tree (perf stat, when perf is installed; else "-"), and total(on) / total(off).
+# per model: medians of the run's total and model-phase seconds and of the page faults of mpiexec
+# and all it starts (perf stat, when perf is installed; else "-"), and total(on) / total(off).
 #   bash jobs/bench_hugepages.sh [build dir] [repeats] [ranks]   (defaults: build 3 2)
 #   MODELS="diffusion dom" limits the models (default: montecarlo diffusion dom lpm psf).
 set -euo pipefail
@@ -48,7 +48,6 @@ run() {
   fi
   echo "$total $model $faults"
 }
-median() { sort -g | awk '{ v[NR] = $1 } END { print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2 }'; }
 
 echo "### default scene, $np rank(s), medians of $reps runs per setting (4 KiB pages = off, huge pages = on)"
 echo

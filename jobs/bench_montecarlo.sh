@@ -42,7 +42,6 @@ run() {  # run BINARY RANKS [more nimbus arguments]
                           if ($i == "collisions/s/core") c = $(i - 1); if ($i == "tallied") s = $(i - 1) } }
       END { print t, p, c, s }' "$log"
 }
-median() { sort -g | awk '{ v[NR] = $1 } END { print v[int((NR + 1) / 2)] }'; }
 
 echo "| version | ranks | photons | tracing s | paths/s per core | collisions/s per core | tallied segments per collision |"
 echo "| --- | --- | --- | --- | --- | --- | --- |"
