@@ -100,19 +100,17 @@ FirstScatterMeans add_light_sources(BandProblem& p, const Decomposition& d, cons
     const FirstScatterMeans means(lt, d, m.rho, scale * o.sigma_t, m.grid.h, carried);
     for (int l = 0; l < nl; ++l) {
         const int t = lit[static_cast<size_t>(l)];
-        const auto& light = lt.lights[static_cast<size_t>(t)];
         const double e0 = E0[static_cast<size_t>(t)];
+        // The source integrates over the cell: the cell's mean of the scaled beam's T (only
+        // where the cell scatters: 88% of the default cloud's cells do not).
         for_each_cell(own, [&](int i, int j, int k) {
-            // The source integrates over the cell: the cell's mean of the scaled beam's T (only
-            // where the cell scatters: 88% of the default cloud's cells do not); the forward
-            // peak is the cell's mean of T' - T, as the fluence is a cell mean.
-            if (p.sigma_s(i, j, k) != 0.0)
-                p.amp(i, j, k, l) = p.sigma_s(i, j, k) * e0 * means(t, i, j, k);
-            if (!(f > 0.0)) return;
-            const double fwd = e0 * lt.forward_peak_mean(d, m.rho, t, o.sigma_t, scale * o.sigma_t, m.grid.h, i, j, k);
-            p.forward_fluence(i, j, k) += fwd;
-            for (int c = 0; c < 3; ++c) p.forward_flux(i, j, k, c) += fwd * light.w[c];
+            if (p.sigma_s(i, j, k) != 0.0) p.amp(i, j, k, l) = p.sigma_s(i, j, k) * e0 * means(t, i, j, k);
         });
+    }
+    // The forward peak: the cell's mean of T' - T, as the fluence is a cell mean.
+    if (f > 0.0) {
+        LightTransport::PeakTarget target{E0, &p.forward_fluence, &p.forward_flux};
+        lt.add_forward_peak(d, m.rho, o.sigma_t, scale * o.sigma_t, m.grid.h, own, {target});
     }
     return means;
 }

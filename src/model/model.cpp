@@ -4,12 +4,14 @@
 
 #include <algorithm>
 #include <array>
+#include <cassert>
 
 #include <cmath>
 #include <limits>
 
 #include "src/core/bounding_box.h"
 #include "src/core/log.h"
+#include "src/model/forward_peak_kernels.h"
 #include "src/physics/phase.h"
 
 namespace nimbus {
@@ -156,6 +158,62 @@ double LightTransport::forward_peak_in_medium(const Decomposition& d, const Fiel
     const double lit = p.face_floor(sigma_scaled, diff);
     const double floor = lit > 0.0 ? lit - p.face_floor(sigma_t, 0.0) : 0.0;
     return std::clamp(std::max(diff, floor), 0.0, p.bound(sigma_scaled));
+}
+
+void LightTransport::forward_peak_row(const Decomposition& d, const Field<double>& rho, int light, double sigma_t,
+                                      double sigma_scaled, double h, int i0, int i1, int j, int k,
+                                      double* out) const {
+    const Field<double>& tau = tau_rho[static_cast<size_t>(light)];
+    assert(tau.stride(0) == 1 && rho.stride(0) == 1);
+    const double* const t = &tau(i0, j, k);
+    const double* const r = &rho(i0, j, k);
+    const int n = i1 - i0;
+    empty_cells_peak(n, t, r, sigma_t, sigma_scaled, out);
+    for (int q = 0; q < n; ++q)
+        if (r[q] > 0.0 && t[q] != 0.0)
+            out[q] = forward_peak_in_medium(d, rho, light, sigma_t, sigma_scaled, h, i0 + q, j, k);
+}
+
+void LightTransport::add_forward_peak(const Decomposition& d, const Field<double>& rho, double sigma_t,
+                                      double sigma_scaled, double h, const Box& cells,
+                                      const std::vector<PeakTarget>& targets) const {
+    if (cells.empty() || targets.empty()) return;
+    for ([[maybe_unused]] const PeakTarget& target : targets)
+        assert(target.e0.size() == lights.size() && target.fluence->ncomp() == 1 &&
+               (!target.flux || target.flux->ncomp() == 3));
+    std::vector<int> shining;  // the lights with a non-zero e0 in some target
+    for (size_t l = 0; l < lights.size(); ++l)
+        for (const PeakTarget& target : targets)
+            if (target.e0[l] != 0.0) {
+                shining.push_back(static_cast<int>(l));
+                break;
+            }
+    const auto n = static_cast<size_t>(cells.hi[0] - cells.lo[0]);
+    const size_t ns = shining.size();
+    std::vector<double> e(targets.size() * ns), w(3 * ns);  // per target the shining lights' e0; their w
+    for (size_t s = 0; s < ns; ++s) {
+        const auto l = static_cast<size_t>(shining[s]);
+        for (size_t t = 0; t < targets.size(); ++t) e[t * ns + s] = targets[t].e0[l];
+        for (int c = 0; c < 3; ++c) w[3 * s + static_cast<size_t>(c)] = lights[l].w[c];
+    }
+    std::vector<double> peak(ns * n);  // per shining light, a row
+    std::vector<double> sum(4 * n);    // a target's row: Σ e0 peak, then Σ e0 peak w (x, y, z)
+    for (int k = cells.lo[2]; k < cells.hi[2]; ++k)
+        for (int j = cells.lo[1]; j < cells.hi[1]; ++j) {
+            for (size_t s = 0; s < ns; ++s)
+                forward_peak_row(d, rho, shining[s], sigma_t, sigma_scaled, h, cells.lo[0], cells.hi[0], j, k,
+                                 &peak[s * n]);
+            for (size_t t = 0; t < targets.size(); ++t) {
+                std::fill(sum.begin(), sum.end(), 0.0);
+                sum_peaks(static_cast<int>(n), static_cast<int>(ns), peak.data(), &e[t * ns], w.data(), sum.data());
+                double* const fluence = &(*targets[t].fluence)(cells.lo[0], j, k);
+                for (size_t q = 0; q < n; ++q) fluence[q] += sum[q];
+                if (!targets[t].flux) continue;
+                double* const flux = &(*targets[t].flux)(cells.lo[0], j, k);
+                for (size_t q = 0; q < n; ++q)
+                    for (size_t c = 0; c < 3; ++c) flux[3 * q + c] += sum[(1 + c) * n + q];
+            }
+        }
 }
 
 double LightTransport::CellProfile::profile_mean(double sigma_t) const {

@@ -89,10 +89,31 @@ struct LightTransport {
         if (!(rho(i, j, k) > 0.0)) return std::exp(-sigma_scaled * tau) - std::exp(-sigma_t * tau);
         return forward_peak_in_medium(d, rho, light, sigma_t, sigma_scaled, h, i, j, k);
     }
+    // Where add_forward_peak puts the lights' forward peaks: fluence += Σ_l e0[l] <T' - T>_l and,
+    // if given, flux (3 components) += Σ_l e0[l] <T' - T>_l w_l; e0 has one value per light (0: the
+    // light does not shine there).
+    struct PeakTarget {
+        std::vector<double> e0;
+        Field<double>* fluence = nullptr;
+        Field<double>* flux = nullptr;
+    };
+    // Adds every light's forward_peak_mean to each target on the cells of box `cells` (inside
+    // the targets' allocated boxes). Row by row: each light's row of means once for all targets,
+    // the empty cells' two exponentials in vector lanes (exp_neg, within 3e-15 of
+    // forward_peak_mean's std::exp: test ForwardPeakRowsMatchTheCellMeans), then each target's
+    // row summed over the lights and written once. On the default scene (9 lights, 3 bands, 1
+    // rank) diffusion's bands step took 0.091 s against 0.134 s light by light over the bands'
+    // fields with libm's exp (medians of 5). rho and tau_rho with their ghost layers. Not
+    // collective.
+    void add_forward_peak(const Decomposition& d, const Field<double>& rho, double sigma_t, double sigma_scaled,
+                          double h, const Box& cells, const std::vector<PeakTarget>& targets) const;
     // Reduced-incident fluence ∫ I_ri dw = Σ E0 T (W/m²) in band b at cell (i, j, k).
     double fluence_reduced(const Medium& m, int b, int i, int j, int k) const;
 
 private:
+    // forward_peak_mean of the cells i0 <= i < i1 of row (j, k) into out[0 .. i1 - i0).
+    void forward_peak_row(const Decomposition& d, const Field<double>& rho, int light, double sigma_t,
+                          double sigma_scaled, double h, int i0, int i1, int j, int k, double* out) const;
     // forward_peak_mean in a cell with density lit by the light (tau_rho > 0).
     double forward_peak_in_medium(const Decomposition& d, const Field<double>& rho, int light, double sigma_t,
                                   double sigma_scaled, double h, int i, int j, int k) const;
