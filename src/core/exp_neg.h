@@ -13,8 +13,10 @@ namespace nimbus {
 // tau is clamped to 700 (e^{-700} ~ 1e-304, never 0 or a subnormal). exp_neg(0) is exactly 1.
 inline double exp_neg(double tau) {
     const double x = -std::min(tau, 700.0);
-    constexpr double kLog2e = 1.4426950408889634, kLn2Hi = 0.693147180369123816490, kLn2Lo = 1.90821492927058770002e-10;
-    constexpr double kShift = 6755399441055744.0;  // 1.5 x 2^52: rounds to an integer in the low bits
+    constexpr double kLog2e = 1.4426950408889634, kLn2Hi = 0.693147180369123816490,
+                     kLn2Lo = 1.90821492927058770002e-10;
+    constexpr double kShift =
+        6755399441055744.0;  // 1.5 x 2^52: rounds to an integer in the low bits
     const double t = x * kLog2e + kShift;
     const double n = t - kShift;
     const double r = (x - n * kLn2Hi) - n * kLn2Lo;

@@ -1,10 +1,10 @@
 // exp_neg (src/core/exp_neg.h), the vectorizable e^{-tau} of the LPM segments and the forward
 // peak's empty cells, against std::exp.
+#include "src/core/exp_neg.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
-
-#include "src/core/exp_neg.h"
 
 namespace nimbus {
 namespace {
@@ -17,7 +17,8 @@ TEST(ExpNeg, WithinThreeEMinusFifteenOfStdExp) {
         const double tau = 700.0 * std::pow(q / 200000.0, 3.0);
         worst = std::max(worst, std::abs(exp_neg(tau) / std::exp(-tau) - 1.0));
     }
-    for (double tau : {1e-300, 1e-12, 0.34657359027997264, 0.6931471805599453, 1.0, 36.04365338911715, 699.999}) {
+    for (double tau : {1e-300, 1e-12, 0.34657359027997264, 0.6931471805599453, 1.0,
+                       36.04365338911715, 699.999}) {
         worst = std::max(worst, std::abs(exp_neg(tau) / std::exp(-tau) - 1.0));
     }
     EXPECT_LT(worst, 3e-15);
