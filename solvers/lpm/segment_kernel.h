@@ -19,6 +19,8 @@
 
 namespace nimbus::lpm {
 
+// e is exp_neg's (src/core/exp_neg.h, within 3e-15 of std::exp): the segment bookkeeping below
+// is exact for any value of e, so that accuracy affects the physics only, not energy conservation.
 struct SegmentWeights {
     double e;   // e^{-tau}
     double f1;  // (1 - e^{-tau}) / tau

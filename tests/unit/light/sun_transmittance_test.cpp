@@ -149,9 +149,9 @@ TEST(SunTransmittance, ForwardPeakIsTheCellMeanOfTheDifference) {
 // w_l in every cell, for two targets with different e0 (one without flux, one light dark in
 // it) and a box of cells that is not the whole rank's. A noisy cloud with holes, three lights,
 // non-periodic: lit and shadowed empty cells (exp_neg in vector lanes), cells with density at
-// the surface (face floors) and deep inside. Within 1e-14 of the lights' e0 sum: exp_neg is
-// within 3e-15 of std::exp; a wrong light, component or cell would be off by the peak itself
-// (up to 0.5 here).
+// the surface (face floors) and deep inside. Within 1e-14 of the lights' e0 sum (both take
+// exp_neg; the vector clone rounds with FMA, and the sums run in another order); a wrong light,
+// component or cell would be off by the peak itself (up to 0.5 here).
 TEST(SunTransmittance, ForwardPeakRowsMatchTheCellMeans) {
     const Int3 n{13, 11, 16};
     const double h = 0.7, sigma_t = 1.3, sigma_s = 0.3 * sigma_t;
