@@ -133,6 +133,7 @@ void solve_limited_rhs(const Decomposition& d, const DiffusionProblem& p, size_t
     q.h = p.h;
     q.n = p.n;
     q.periodic = p.periodic;
+    q.rhs_within = p.rhs_within;  // where G lives: its halo exchange must skip the ranks outside it
     q.reflective = p.reflective;
     q.kappa_tr = p.kappa_tr;
     q.sigma_a = p.sigma_a;
