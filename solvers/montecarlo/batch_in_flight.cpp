@@ -105,6 +105,7 @@ void BatchInFlight::trace(int batch, int layout, std::int64_t k0, std::int64_t k
             LightTerm term{emitter ? nullptr : &p_.entry[l], emitter ? Vec3{0, 0, -1} : p_.lights[l].w, emitter,
                            static_cast<std::uint32_t>(l)};
             term.tally_scale = alpha == 0.0 ? 1.0 : alpha;
+            term.empty_cells = p_.empty_cells;
             double* const flux = settings_.tally_flux ? flux_acc_.data() : nullptr;
             if (lanes_)
                 trace_photons_lanes(grid, po, term, opt_.seed, from, to, light_touched_, pt, flux);
@@ -155,10 +156,10 @@ void BatchInFlight::fold_class(FoldClass& fc, const GridView& grid, const int* b
         if (c[band[fc.strongest]] == 0.0) touched_.push_back(idx);
         for (int q = 0; q < nbg; ++q) c[band[q]] += track * fc.scale[q];
     };
-    double diffuse_track = 0.0;  // sum of w len alpha (cells) after the first scattering
+    double diffuse_track = 0.0;  // sum of w len alpha (cells) after the first scattering, in the medium
     for_each_listed(light_touched_, [&](std::int64_t idx) {
         const double v = std::exchange(grid.voxel[idx].tally, 0.0);
-        diffuse_track += v;
+        if (grid.voxel[idx].kappa > 0.0f) diffuse_track += v;  // empty cells (empty_cells) aside
         if (v != 0.0) fold(tally_, idx, v);
         if (!flux_acc_.empty() && v != 0.0) {  // a cell with a collision has fluence: listed here
             double* acc = flux_acc_.data() + 4 * idx;

@@ -78,8 +78,8 @@ void batch_mean_stderr(double s, double s2, int K, double& mean, double& se) {
 }
 
 // The per-cell sums of the replicated grid (this rank's share of the batches), reduced to the
-// owner of each cell: only cells with density (the others are never tallied; every rank knows
-// the replicated rho, `has_density`), packed by destination rank. `at(i, j, k)` is a cell's
+// owner of each cell: only the tallied cells (with density, or all with empty_cells; every rank
+// knows the replicated rho, `has_density` says which), packed by destination rank. `at(i, j, k)` is a cell's
 // index into the sums ([cell][band]); quantities per band and cell: sum, sumsq (and rsum,
 // rsumsq with the reduced tally). Fills res's per-band fields (mean and standard error of K
 // batches), halo-exchanged. Collective.
@@ -438,7 +438,7 @@ ForwardResult trace_forward(const Decomposition& d, const Medium& medium,
 
     counter_statistics(all_counters, nb, done, res);
     reduce_to_owners(
-        d, nb, done, [&](int i, int j, int k) { return problem.has_density(i, j, k); },
+        d, nb, done, [&](int i, int j, int k) { return problem.tallied(i, j, k); },
         [&](int i, int j, int k) { return problem.box_index(i, j, k); }, kept_sums.sum, kept_sums.sumsq,
         settings.tally_reduced ? &kept_sums.rsum : nullptr, settings.tally_reduced ? &kept_sums.rsumsq : nullptr,
         settings.tally_flux ? &kept_sums.fsum : nullptr, res);

@@ -59,7 +59,8 @@ enum Counter : int {
                       // first collision booked as its expected value exp(-tau_tot) per path)
     escaped_xlo, escaped_xhi, escaped_ylo, escaped_yhi, escaped_zlo, escaped_zhi,  // scattered light out
     roulette_net,     // weight created minus destroyed by Russian roulette (zero on average)
-    diffuse_volume,   // ∫ fluence_diffuse dV (W m): the quantity of the target error
+    diffuse_volume,   // ∫ fluence_diffuse dV over the cells with density (W m; with empty_cells the
+                      // empty cells' fluence is not in it): the quantity of the target error
     emitted,          // power of the volume sources (W); balance: incident + emitted =
                       // absorbed + escaped_direct + Σ escaped_faces (+ roulette_net, zero mean)
     ncounters

@@ -76,7 +76,8 @@ std::vector<std::array<int, 3>> surface_cells(const std::array<int, 3>& m, const
 // probability |n·w| area / A_projected and uniformly over the face (grid units). Rays that miss
 // the box cross only empty cells and leave unscattered, so starting on the box is exact; the
 // caller books the rest of the domain's projected area as direct escape. sample() gives the
-// cell relative to the box (the walk's grid covers only the box, grid_walk.h).
+// cell in the walked grid (grid_walk.h: the box itself, or the domain when empty cells are
+// tallied; GridView::origin).
 //
 // restrict_to(nonempty) narrows the entry further to the live pixels (cell-sized squares) of
 // each face: those whose rays can reach a non-empty cell. A pixel is live if it meets the
@@ -222,6 +223,7 @@ struct EntrySampler {
                 cell[a] = c - lo[a];
             }
         }
+        for (int a = 0; a < 3; ++a) cell[a] += lo[a] - grid.origin[a];  // box-relative to the walked grid's
         s.idx = grid.index(cell);
     }
 
@@ -268,8 +270,9 @@ inline double uncollided_track(double tau_in, double kappa, double len) {
 // Continues a path of weight w from its collision at s until it leaves the domain or ends:
 // implicit capture, roulette, HG scattering, the next free flight (tallied as diffuse).
 // tally_collision(idx, w) is called at every collision that ends a diffuse flight (the first
-// one too when `diffuse`), before the capture, with s.d the flight's direction.
-template <class TallyDiffuse, class TallyCollision>
+// one too when `diffuse`), before the capture, with s.d the flight's direction. kEmptyCells: the
+// flights' segments in empty cells are tallied too (walk_optical_depth).
+template <bool kEmptyCells = false, class TallyDiffuse, class TallyCollision>
 [[gnu::always_inline]] inline void scatter_path(const GridView& grid, const PhotonOptics& o, PathRng& rng, PathState& s,
                          PathTally& out, double w, TallyDiffuse&& tally_diffuse, TallyCollision&& tally_collision,
                          bool diffuse) {
@@ -294,7 +297,8 @@ template <class TallyDiffuse, class TallyCollision>
         sincos_2pi(rng.uniform(), cos_phi, sin_phi);  // phi = 2π xi
         s.d = turn_direction(s.d, mu, cos_phi, sin_phi);
         const double tau = -std::log(rng.uniform());
-        const int face = walk_optical_depth(grid, s, tau, [&](std::int64_t idx, double len) { tally_diffuse(idx, w * len); });
+        const int face =
+            walk_optical_depth<kEmptyCells>(grid, s, tau, [&](std::int64_t idx, double len) { tally_diffuse(idx, w * len); });
         if (face >= 0) {
             out.escaped_diffuse[face] += w;
             return;
@@ -307,8 +311,10 @@ template <class TallyDiffuse, class TallyCollision>
 // after the first (scatter_path); tally_reduced(idx, track) per uncollided
 // segment if tally_reduced_on: the analog track length before the first collision, or with
 // `forced` the expected uncollided track (uncollided_track) over the whole entry ray. A forced
-// path costs one walk of its entry ray (tau_tot) plus the walk to its collision.
-template <bool tally_reduced_on = false, class TallyDiffuse, class TallyCollision, class TallyReduced>
+// path costs one walk of its entry ray (tau_tot) plus the walk to its collision. kEmptyCells: as
+// scatter_path's (the uncollided flight, not tallied as diffuse, keeps its empty-space jumps).
+template <bool tally_reduced_on = false, bool kEmptyCells = false, class TallyDiffuse, class TallyCollision,
+          class TallyReduced>
 [[gnu::always_inline]] inline void trace_photon(const GridView& grid, const PhotonOptics& o, PathRng& rng, PathState& s,
                          PathTally& out, TallyDiffuse&& tally_diffuse, TallyCollision&& tally_collision,
                          TallyReduced&& tally_reduced, bool forced = false) {
@@ -342,23 +348,24 @@ template <bool tally_reduced_on = false, class TallyDiffuse, class TallyCollisio
             return;
         }
     }
-    scatter_path(grid, o, rng, s, out, w, tally_diffuse, tally_collision, false);
+    scatter_path<kEmptyCells>(grid, o, rng, s, out, w, tally_diffuse, tally_collision, false);
 }
 
 // A photon of a volume source (emitter.h): starts at s (inside an emitting cell, direction
 // s.d) with weight 1. All emitted light is diffuse light (DESIGN §1), so its track (and its
 // first collision) is tallied from the start; an emitted photon that leaves uncollided is
-// booked in escaped_diffuse.
-template <class TallyDiffuse, class TallyCollision>
+// booked in escaped_diffuse. kEmptyCells: as scatter_path's.
+template <bool kEmptyCells = false, class TallyDiffuse, class TallyCollision>
 [[gnu::always_inline]] inline void trace_emitted_photon(const GridView& grid, const PhotonOptics& o, PathRng& rng, PathState& s,
                                  PathTally& out, TallyDiffuse&& tally_diffuse, TallyCollision&& tally_collision) {
     const double tau = -std::log(rng.uniform());
-    const int face = walk_optical_depth(grid, s, tau, [&](std::int64_t idx, double len) { tally_diffuse(idx, len); });
+    const int face =
+        walk_optical_depth<kEmptyCells>(grid, s, tau, [&](std::int64_t idx, double len) { tally_diffuse(idx, len); });
     if (face >= 0) {
         out.escaped_diffuse[face] += 1.0;
         return;
     }
-    scatter_path(grid, o, rng, s, out, 1.0, tally_diffuse, tally_collision, true);
+    scatter_path<kEmptyCells>(grid, o, rng, s, out, 1.0, tally_diffuse, tally_collision, true);
 }
 
 }  // namespace nimbus::mc

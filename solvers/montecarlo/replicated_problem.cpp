@@ -39,9 +39,10 @@ ReplicatedProblem replicate_problem(const Decomposition& d, const Medium& medium
     p.rho = allgather_global(medium.rho, d);
     const std::vector<double>& rho = p.rho;
 
-    // Bounding box of the non-empty cells (the whole extent along periodic axes).
-    Int3& box_lo = p.box_lo;
-    Int3& box_hi = p.box_hi;
+    // Bounding box of the non-empty cells (the whole extent along periodic axes): where the
+    // lights' photons enter.
+    Int3& box_lo = p.entry_lo;
+    Int3& box_hi = p.entry_hi;
     box_lo = n;
     for_each_cell(d.global(), [&](int i, int j, int k) {
         if (p.has_density(i, j, k)) {
@@ -52,10 +53,14 @@ ReplicatedProblem replicate_problem(const Decomposition& d, const Medium& medium
     for (int a = 0; a < 3; ++a)
         if (p.periodic[a] || box_hi[a] <= box_lo[a]) box_lo[a] = 0, box_hi[a] = p.periodic[a] ? n[a] : 0;
 
-    // The walk's grid covers only the box (outside it all is empty), padded by one ghost
-    // layer (grid_walk.h); the per-cell arrays use the walk's cell indices.
+    // The walk's grid covers only that box (outside it all is empty), or the whole domain when
+    // the empty cells are tallied too, padded by one ghost layer (grid_walk.h); the per-cell
+    // arrays use the walk's cell indices.
+    p.empty_cells = opt.empty_cells;
+    p.box_lo = opt.empty_cells ? Int3{0, 0, 0} : box_lo;
+    p.box_hi = opt.empty_cells ? n : box_hi;
     const Int3& box_n = p.box_n;
-    for (int a = 0; a < 3; ++a) p.box_n[a] = std::max(box_hi[a] - box_lo[a], 1);
+    for (int a = 0; a < 3; ++a) p.box_n[a] = std::max(p.box_hi[a] - p.box_lo[a], 1);
     p.padded_cells = static_cast<std::int64_t>(box_n[0] + 2) * (box_n[1] + 2) * (box_n[2] + 2);
 
     // Light terms: entry faces, projected area (m²) of the domain and of the box's live pixels
@@ -102,17 +107,18 @@ ReplicatedProblem replicate_problem(const Decomposition& d, const Medium& medium
                   opt.photons, opt.photons == 1 ? "" : "s", n_total, std::count_if(power.begin(), power.end(), [](double v) { return v > 0; }),
                   opt.batches);
 
-    // One padded voxel grid per optics group: kappa in 1/cell over the box.
+    // One padded voxel grid per optics group: kappa in 1/cell over the walked box.
     p.voxels.resize(p.groups.size());
+    const Int3 &walk_lo = p.box_lo, &walk_hi = p.box_hi;
     std::vector<float> kappa(static_cast<size_t>(box_n[0]) * box_n[1] * box_n[2], 0.0f);
     for (size_t gi = 0; gi < p.groups.size(); ++gi) {
-        for (int k = box_lo[2]; k < box_hi[2]; ++k)
-            for (int j = box_lo[1]; j < box_hi[1]; ++j)
-                for (int i = box_lo[0]; i < box_hi[0]; ++i)
-                    kappa[(static_cast<size_t>(k - box_lo[2]) * box_n[1] + (j - box_lo[1])) * box_n[0] + (i - box_lo[0])] =
+        for (int k = walk_lo[2]; k < walk_hi[2]; ++k)
+            for (int j = walk_lo[1]; j < walk_hi[1]; ++j)
+                for (int i = walk_lo[0]; i < walk_hi[0]; ++i)
+                    kappa[(static_cast<size_t>(k - walk_lo[2]) * box_n[1] + (j - walk_lo[1])) * box_n[0] + (i - walk_lo[0])] =
                         static_cast<float>(rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] * p.groups[gi].optics.sigma_t * h);
         p.voxels[gi] = make_voxels(box_n, kappa);
-        p.voxels[gi].origin = box_lo;
+        p.voxels[gi].origin = walk_lo;
         p.voxels[gi].domain = n;
     }
     return p;

@@ -1,8 +1,9 @@
 // What every rank of the forward Monte Carlo model traces (forward.h): the density grid
 // replicated on every rank, the walked box (the bounding box of the non-empty cells, the whole
-// extent along periodic axes), one padded voxel grid per optics group (grid_walk.h), and the
-// light terms: where each light's photons enter (photon.h, EntrySampler on the box's live
-// pixels), the volume sources' emitters (emitter.h), and each term's share of the photons.
+// extent along periodic axes; the whole domain with MonteCarloOptions::empty_cells), one padded
+// voxel grid per optics group (grid_walk.h), and the light terms: where each light's photons
+// enter (photon.h, EntrySampler on the live pixels of the bounding box of the non-empty
+// cells), the volume sources' emitters (emitter.h), and each term's share of the photons.
 //
 // Per-cell arrays of the forward model are indexed like the voxel grids: box_index(i, j, k) of a
 // domain cell inside the box, padded_cells values in all.
@@ -29,7 +30,10 @@ struct ReplicatedProblem {
     std::vector<double> rho;  // the global density, x fastest
     double replicated_gb = 0.0;  // per-rank memory of the replicated arrays (replicated_bytes)
 
-    Int3 box_lo{0, 0, 0}, box_hi{0, 0, 0};  // the walked box, domain cells [lo, hi) (empty: no density)
+    Int3 entry_lo{0, 0, 0}, entry_hi{0, 0, 0};  // bounding box of the non-empty cells, domain cells
+                                                // [lo, hi), the whole extent along periodic axes (empty: no density)
+    bool empty_cells = false;                // the empty cells' fluence is tallied (MonteCarloOptions)
+    Int3 box_lo{0, 0, 0}, box_hi{0, 0, 0};  // the walked box: entry_lo/hi, or the domain with empty_cells
     Int3 box_n{1, 1, 1};                     // its cells per axis, at least 1 (the voxel grids' n)
     std::int64_t padded_cells = 0;           // of the box with its ghost layer
 
@@ -47,6 +51,8 @@ struct ReplicatedProblem {
     bool has_density(int i, int j, int k) const {
         return rho[(static_cast<size_t>(k) * n[1] + j) * n[0] + i] > 0;
     }
+    // Whether the forward model estimates the fluence of cell (i, j, k).
+    bool tallied(int i, int j, int k) const { return empty_cells || has_density(i, j, k); }
     // Index of domain cell (i, j, k), inside the box, into the padded per-cell arrays.
     std::int64_t box_index(int i, int j, int k) const {
         return GridView{box_n, periodic, nullptr}.index({i - box_lo[0], j - box_lo[1], k - box_lo[2]});

@@ -351,7 +351,8 @@ NIMBUS_V4 void start_light_photons(Context& c, LaneStore& st, m8 k) {
     }
     const std::int64_t sy = g.n[0] + 2, sz = sy * (g.n[1] + 2);
     const std::int64_t stride[3] = {1, sy, sz};
-    vi idx = _mm512_set1_epi64(1 + sy + sz);  // index of cell (0, 0, 0)
+    // index of the entry box's cell (0, 0, 0) in the walked grid (the box itself, or the domain)
+    vi idx = _mm512_set1_epi64(g.index({T.lo[0] - g.origin[0], T.lo[1] - g.origin[1], T.lo[2] - g.origin[2]}));
     for (int a = 0; a < 3; ++a) {
         const m8 on_axis = k & _mm512_cmpeq_epi64_mask(axis, _mm512_set1_epi64(a));
         const m8 across = k & static_cast<m8>(~on_axis);
@@ -668,8 +669,10 @@ NIMBUS_V4_INLINE void pass(Context& c, Lanes& L) {
     const m8 ghost = m.active & _mm512_cmpeq_epi64_mask(skip, outside);
     const m8 stepping = m.active & static_cast<m8>(~ghost);
     // Empty-space jump across the cube of half-width e = skip - 1 (grid_walk.h); a unit
-    // step is the jump with e = 0.
-    const m8 jump = stepping & _mm512_cmpgt_epu64_mask(skip, one_i);
+    // step is the jump with e = 0. Flights that tally empty cells (term.empty_cells) cross
+    // them by unit steps.
+    const m8 unit_only = c.term.empty_cells ? m.tallying : m8{0};
+    const m8 jump = stepping & static_cast<m8>(~unit_only) & _mm512_cmpgt_epu64_mask(skip, one_i);
     const vd e = _mm512_sub_pd(_mm512_cvtepu64_pd(skip), one);
     const vd cx = _mm512_mask3_fmadd_pd(e, W.ix, W.tx, jump);
     const vd cy = _mm512_mask3_fmadd_pd(e, W.iy, W.ty, jump);
@@ -695,7 +698,7 @@ NIMBUS_V4_INLINE void pass(Context& c, Lanes& L) {
     const m8 medium = stepping & _mm512_cmp_pd_mask(kappa, zero, _CMP_GT_OQ);
     const m8 coll = medium & _mm512_cmp_pd_mask(depth, W.tau, _CMP_GE_OQ);
     const vd len = _mm512_mask_div_pd(seg, coll, W.tau, kappa);
-    if (const m8 tallied = medium & m.tallying) {
+    if (const m8 tallied = (c.term.empty_cells ? stepping : medium) & m.tallying) {
         const vd add = _mm512_mul_pd(_mm512_mul_pd(W.w, len), ts);
         const vi conflicts = _mm512_maskz_conflict_epi64(tallied, _mm512_mask_mov_epi64(dummy, tallied, W.idx));
         if (!_mm512_test_epi64_mask(conflicts, conflicts)) [[likely]] {

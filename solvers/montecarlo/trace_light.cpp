@@ -2,12 +2,13 @@
 
 namespace nimbus::mc {
 
-// The kernels of photon.h and grid_walk.h are always_inline, so each clone compiles its own
-// copy of the whole path loop for its target.
-__attribute__((target_clones("arch=x86-64-v3", "default")))
-void trace_photons(const GridView& grid, const PhotonOptics& optics, const LightTerm& term, std::uint64_t seed,
-                   std::int64_t lo, std::int64_t hi, bool forced_first_collision, double* reduced,
-                   std::vector<std::int64_t>& lit, PathTally& out, double* flux) {
+namespace {
+
+template <bool kEmptyCells>
+[[gnu::always_inline]] inline void trace_range(const GridView& grid, const PhotonOptics& optics,
+                                               const LightTerm& term, std::uint64_t seed, std::int64_t lo,
+                                               std::int64_t hi, bool forced_first_collision, double* reduced,
+                                               std::vector<std::int64_t>& lit, PathTally& out, double* flux) {
     Voxel* const voxel = grid.voxel;
     const double ts = term.tally_scale;  // 1 exactly for a term that starts its fold class
     auto diffuse = [voxel, ts, &lit, &out](std::int64_t idx, double wl) {
@@ -34,16 +35,32 @@ void trace_photons(const GridView& grid, const PhotonOptics& optics, const Light
         };
         if (term.emitter) {
             term.emitter->sample(rng, grid, s);
-            trace_emitted_photon(grid, optics, rng, s, out, diffuse, collision);
+            trace_emitted_photon<kEmptyCells>(grid, optics, rng, s, out, diffuse, collision);
             continue;
         }
         s.d = term.w;
         term.entry->sample(rng, grid, s);
         if (reduced)
-            trace_photon<true>(grid, optics, rng, s, out, diffuse, collision, uncollided, forced_first_collision);
+            trace_photon<true, kEmptyCells>(grid, optics, rng, s, out, diffuse, collision, uncollided,
+                                            forced_first_collision);
         else
-            trace_photon(grid, optics, rng, s, out, diffuse, collision, [](std::int64_t, double) {}, forced_first_collision);
+            trace_photon<false, kEmptyCells>(grid, optics, rng, s, out, diffuse, collision,
+                                             [](std::int64_t, double) {}, forced_first_collision);
     }
+}
+
+}  // namespace
+
+// The kernels of photon.h and grid_walk.h are always_inline (trace_range too), so each clone
+// compiles its own copy of the whole path loop for its target, once per kEmptyCells.
+__attribute__((target_clones("arch=x86-64-v3", "default")))
+void trace_photons(const GridView& grid, const PhotonOptics& optics, const LightTerm& term, std::uint64_t seed,
+                   std::int64_t lo, std::int64_t hi, bool forced_first_collision, double* reduced,
+                   std::vector<std::int64_t>& lit, PathTally& out, double* flux) {
+    if (term.empty_cells)
+        trace_range<true>(grid, optics, term, seed, lo, hi, forced_first_collision, reduced, lit, out, flux);
+    else
+        trace_range<false>(grid, optics, term, seed, lo, hi, forced_first_collision, reduced, lit, out, flux);
 }
 
 }  // namespace nimbus::mc

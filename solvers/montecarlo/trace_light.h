@@ -6,7 +6,8 @@
 // cell it crosses after its first scattering (emitted photons: from their start); the scale lets
 // terms of one colour share the accumulators (batch_in_flight.cpp). Each cell whose tally was 0 before is
 // appended to `lit`, so the caller can fold the accumulators into its per-band tallies and zero
-// them in O(cells touched). With `reduced` (verification only), the uncollided track goes to
+// them in O(cells touched). With term.empty_cells the diffuse segments in empty cells are tallied
+// as well (their fluence; the uncollided flight keeps its empty-space jumps). With `reduced` (verification only), the uncollided track goes to
 // reduced[idx] (cells listed in `lit` too; a cell may be listed twice, folding 0 the second time).
 // With `flux` (4 doubles per padded cell, [idx][x, y, z, unused]; 32-byte aligned), each
 // collision that ends a tallied flight adds (w s / kappa) d there (w the weight before capture,
@@ -37,6 +38,9 @@ struct LightTerm {
     const VolumeEmitter* emitter = nullptr;  // when set, entry and w are not used
     std::uint32_t stream = 0;                // Philox stream of the term (its index)
     double tally_scale = 1.0;                // multiplies every tallied track (diffuse and reduced)
+    // Diffuse flights tally their segments in empty cells too (MonteCarloOptions::empty_cells),
+    // crossing them one by one; the walked grid must then cover the whole domain.
+    bool empty_cells = false;
 };
 
 // Traces photons [lo, hi) of `term` with seed `seed`; out collects the energy bookkeeping.

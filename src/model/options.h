@@ -42,6 +42,9 @@ struct MonteCarloOptions {
     std::string kernel = "auto";        // forward paths: auto (lanes where the CPU has AVX-512) | lanes | scalar
     bool flux = false;                  // tally the diffuse flux F (flux_diffuse; the ray caster's in-scatter
                                         // then uses it): 10-12% of the tracing; noisy at 1e6 photons
+    bool empty_cells = false;           // tally fluence_diffuse in the empty cells too (DESIGN defines it
+                                        // there; off, they stay 0 and the walk jumps across empty space):
+                                        // about 2x the tracing time on the default cloud
     void validate() const;
     bool operator==(const MonteCarloOptions&) const = default;
 };
@@ -60,6 +63,7 @@ void for_each_option(O& o, F&& f) {
     f("samples_per_pixel", o.samples_per_pixel);
     f("kernel", o.kernel);
     f("flux", o.flux);
+    f("empty_cells", o.empty_cells);
 }
 
 // The diffusion model on hypre (solvers/diffusion).

@@ -35,7 +35,7 @@ MonteCarloOptions custom_montecarlo() {
     return {.photons = 123456789012, .time_budget = 60.0, .target_rel_error = 0.01,
             .seed = 9876543210, .batches = 16, .roulette_weight = 0.1,
             .max_replicated_memory_gb = 2.5, .image = true, .samples_per_pixel = 8,
-            .kernel = "scalar", .flux = true};
+            .kernel = "scalar", .flux = true, .empty_cells = true};
 }
 DiffusionOptions custom_diffusion() {
     return {.solver = "petsc", .tolerance = 1e-10, .max_iterations = 999, .margin = 5,

@@ -24,11 +24,10 @@
 #include "solvers/montecarlo/forward.h"
 #include "tests/support/duct_reference.h"
 #include "tests/support/mpi_test.h"
+#include "tests/support/point_source.h"
 
 namespace nimbus::mc {
 namespace {
-
-constexpr double kPi = std::numbers::pi;
 
 // A homogeneous cube (no periodic axes) of n cells of edge h, density 1.
 struct Cube {
@@ -138,41 +137,6 @@ TEST(Emission, InfiniteMediumCentreFluence) {
     EXPECT_LT(std::abs(mean_dev), 4.0 * mean_se + 1e-3);
 }
 
-// Cell-averaged uncollided fluence (W/m²) at the cell with low corner `det` (in cells) from a
-// cell of power P (W) with low corner `src` in a pure absorber kappa:
-//   phi = (1/h³) ∫_det dx ∫_src dy (P/h³) exp(-kappa |x-y|) / (4π |x-y|²) = P E[f(u)],
-// u = x - y, whose density per axis is the triangle (h - |u_a - d_a|)/h² on [d_a - h, d_a + h]
-// (the convolution of the two boxes); each half of each triangle by 6-point Gauss-Legendre.
-double point_source_fluence(const std::array<double, 3>& src, const std::array<double, 3>& det,
-                            double h, double kappa, double P) {
-    const double x[6] = {-0.9324695142031521, -0.6612093864662645, -0.2386191860831969,
-                         0.2386191860831969,  0.6612093864662645,  0.9324695142031521};
-    const double w[6] = {0.1713244923791704, 0.3607615730481386, 0.4679139345726910,
-                         0.4679139345726910, 0.3607615730481386, 0.1713244923791704};
-    double sum = 0.0, d[3];
-    for (int a = 0; a < 3; ++a)
-        d[a] = (det[static_cast<size_t>(a)] - src[static_cast<size_t>(a)]) * h;
-    for (int s0 = 0; s0 < 2; ++s0)
-        for (int s1 = 0; s1 < 2; ++s1)
-            for (int s2 = 0; s2 < 2; ++s2)
-                for (int i = 0; i < 6; ++i)
-                    for (int j = 0; j < 6; ++j)
-                        for (int k = 0; k < 6; ++k) {
-                            const int side[3] = {s0, s1, s2};
-                            const int idx[3] = {i, j, k};
-                            double u[3], wt = 1.0;
-                            for (int a = 0; a < 3; ++a) {
-                                const double t = 0.5 * h * (1.0 + x[idx[a]]);  // |u - d| in [0, h]
-                                u[a] = d[a] + (side[a] ? t : -t);
-                                wt *= w[idx[a]] * 0.5 * h * (h - t) / (h * h);
-                            }
-                            const double r2 = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
-                            const double r = std::sqrt(r2);
-                            sum += wt * std::exp(-kappa * r) / (4.0 * kPi * r2);
-                        }
-    return P * sum;
-}
-
 TEST(Emission, PointSourceInAPureAbsorber) {
     // 15^3 cells of 1 m, kappa 0.3 /m, a = 0; one emitting cell at (7, 7, 7) of 5 W/m³ (P = 5 W).
     const double h = 1.0, kappa = 0.3, p = 5.0;
@@ -188,7 +152,7 @@ TEST(Emission, PointSourceInAPureAbsorber) {
         if (c.d.local().contains(q[0], q[1], q[2]))
             v[0] = r.fluence[0](q[0], q[1], q[2]), v[1] = r.fluence_stderr[0](q[0], q[1], q[2]);
         MPI_Allreduce(MPI_IN_PLACE, v, 2, MPI_DOUBLE, MPI_SUM, c.d.comm());
-        const double exact = point_source_fluence(
+        const double exact = test::point_source_fluence(
             {7, 7, 7}, {double(q[0]), double(q[1]), double(q[2])}, h, kappa, p * h * h * h);
         const double z = (v[0] - exact) / v[1];
         if (test::world_rank() == 0)

@@ -4,7 +4,8 @@
 // the touched-cell lists agree to round-off. Cases chosen to reach every branch of the lanes: empty-space jumps and
 // exits through every face of a sparse medium (live-pixel entry), periodic wraps, roulette
 // (low albedo), isotropic (g = 0) and backward scattering, a medium box smaller than the domain
-// (exit faces beyond the box), emitted photons, photon ranges not a multiple of the lanes.
+// (exit faces beyond the box), emitted photons, photon ranges not a multiple of the lanes, and
+// the empty cells' tallies (a walked grid larger than the entry box).
 // Skipped on a CPU without AVX-512 (the run then never uses the lane kernel).
 #include <gtest/gtest.h>
 
@@ -124,7 +125,9 @@ TEST(LaneKernel, LightPhotonsTakeTheScalarKernelsPaths) {
         const Medium med = sparse_medium(lc.n, 7, lc.haze);
         VoxelGrid vg = make_voxels(lc.n, med.kappa);
         if (lc.domain[0] > 0) vg.origin = lc.origin, vg.domain = lc.domain;
-        EntrySampler entry({0, 0, 0}, lc.n, lc.periodic, lc.w);
+        // the entry box in domain cells: the walked grid itself (as trace_forward without empty cells)
+        EntrySampler entry(vg.origin, {vg.origin[0] + lc.n[0], vg.origin[1] + lc.n[1], vg.origin[2] + lc.n[2]},
+                           lc.periodic, lc.w);
         if (lc.live_pixels) {
             const auto nonempty = [&](const std::array<int, 3>& c) {
                 return med.kappa[(static_cast<size_t>(c[2]) * lc.n[1] + c[1]) * lc.n[0] + c[0]] > 0.0f;
@@ -143,6 +146,87 @@ TEST(LaneKernel, LightPhotonsTakeTheScalarKernelsPaths) {
         int faces = 0;
         for (int f = 0; f < 6; ++f) faces += scalar.tally.escaped_diffuse[f] > 0;
         EXPECT_GE(faces, lc.periodic[0] ? 2 : 6) << lc.name << ": light left through too few faces";
+    }
+}
+
+// MonteCarloOptions::empty_cells: the walked grid is the domain, larger than the entry box (the
+// bounding box of the medium), and the diffuse flights tally empty cells too, by unit steps.
+// The kernels agree with each other, and the paths are those traced without it: the same
+// collisions and energy counters, the same tallies in the cells with density.
+TEST(LaneKernel, EmptyCellsTakeTheScalarKernelsPaths) {
+    if (!lane_kernel_supported()) GTEST_SKIP() << "this CPU has no AVX-512: the lane kernel never runs here";
+    const std::array<int, 3> n{18, 15, 12};
+    Medium med = sparse_medium(n, 4, 0.03);
+    // no medium within 3 cells of the domain's faces (x, y, and z)
+    std::array<int, 3> lo = n, hi{0, 0, 0};
+    for (int k = 0; k < n[2]; ++k)
+        for (int j = 0; j < n[1]; ++j)
+            for (int i = 0; i < n[0]; ++i) {
+                float& v = med.kappa[(static_cast<size_t>(k) * n[1] + j) * n[0] + i];
+                const std::array<int, 3> c{i, j, k};
+                for (int a = 0; a < 3; ++a)
+                    if (c[a] < 3 || c[a] >= n[a] - 3) v = 0.0f;
+                if (v > 0.0f)
+                    for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], c[a]), hi[a] = std::max(hi[a], c[a] + 1);
+            }
+    ASSERT_LT(lo[0], hi[0]);
+    const auto kappa_at = [&](const std::array<int, 3>& c) {
+        return med.kappa[(static_cast<size_t>(c[2]) * n[1] + c[1]) * n[0] + c[0]];
+    };
+    const Vec3 w = normalized(Vec3{0.3, -0.2, -0.9});
+    for (const std::array<bool, 3> periodic : {std::array<bool, 3>{false, false, false}, std::array<bool, 3>{true, true, false}}) {
+        SCOPED_TRACE(periodic[0] ? "periodic x, y" : "open");
+        std::array<int, 3> elo = lo, ehi = hi;  // the entry box: the whole extent along periodic axes
+        for (int a = 0; a < 3; ++a)
+            if (periodic[a]) elo[a] = 0, ehi[a] = n[a];
+        EntrySampler entry(elo, ehi, periodic, w);
+        entry.restrict_to(surface_cells({ehi[0] - elo[0], ehi[1] - elo[1], ehi[2] - elo[2]}, periodic,
+                                        [&](const std::array<int, 3>& c) {
+                                            return kappa_at({c[0] + elo[0], c[1] + elo[1], c[2] + elo[2]}) > 0.0f;
+                                        }),
+                          periodic, w);
+        VoxelGrid vg = make_voxels(n, med.kappa);  // the whole domain
+        const PhotonOptics optics{0.95, 0.7, 0.05};
+        LightTerm term{&entry, w, nullptr, 4, 1.0};
+        const std::int64_t first = 7, last = 7 + 3001;
+        const auto scalar_kernel = [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t, double* f) {
+            trace_photons(g, optics, term, 5, first, last, false, nullptr, lit, t, f);
+        };
+        const auto lane_kernel = [&](const GridView& g, std::vector<std::int64_t>& lit, PathTally& t, double* f) {
+            trace_photons_lanes(g, optics, term, 5, first, last, lit, t, f);
+        };
+        const Traced jumping = trace(vg, periodic, scalar_kernel);
+        term.empty_cells = true;
+        const Traced scalar = trace(vg, periodic, scalar_kernel);
+        const Traced lanes = trace(vg, periodic, lane_kernel);
+        expect_same(scalar, lanes, "empty cells tallied");
+        // The same paths as without the empty cells' tallies.
+        EXPECT_EQ(scalar.tally.collisions, jumping.tally.collisions);
+        EXPECT_GT(scalar.tally.segments, jumping.tally.segments);
+        const double tol = 1e-12 * static_cast<double>(last - first);  // of the photons' total weight
+        EXPECT_NEAR(scalar.tally.absorbed, jumping.tally.absorbed, tol);
+        EXPECT_NEAR(scalar.tally.escaped_direct, jumping.tally.escaped_direct, tol);
+        for (int f = 0; f < 6; ++f) EXPECT_NEAR(scalar.tally.escaped_diffuse[f], jumping.tally.escaped_diffuse[f], tol);
+        double peak = 0.0, worst = 0.0;
+        std::int64_t empty_lit = 0, empty_outside_box = 0;
+        const GridView g = vg.view(periodic);
+        for (int k = 0; k < n[2]; ++k)
+            for (int j = 0; j < n[1]; ++j)
+                for (int i = 0; i < n[0]; ++i) {
+                    const std::int64_t idx = g.index({i, j, k});
+                    const double v = scalar.voxel_tally[static_cast<size_t>(idx)];
+                    peak = std::max(peak, v);
+                    if (kappa_at({i, j, k}) > 0.0f) {
+                        worst = std::max(worst, std::abs(v - jumping.voxel_tally[static_cast<size_t>(idx)]));
+                        continue;
+                    }
+                    EXPECT_EQ(jumping.voxel_tally[static_cast<size_t>(idx)], 0.0);
+                    empty_lit += v > 0.0;
+                    empty_outside_box += v > 0.0 && (k < lo[2] || k >= hi[2]);
+                }
+        EXPECT_LT(worst, 1e-12 * peak);
+        EXPECT_GT(empty_lit, 500);          // empty cells inside and around the medium
+        EXPECT_GT(empty_outside_box, 100);  // and beyond its box, above and below
     }
 }
 
