@@ -379,7 +379,9 @@ Scene convert(const toml::value& tree, const std::string& source, const fs::path
     try {
         s.validate();
         s.model.montecarlo.validate();
-        s.model.diffusion.validate();
+        // Settings diffusion would leave unread are an error only when it is the model.
+        if (s.model.name == "diffusion") s.model.diffusion.validate();
+        else s.model.diffusion.validate_ranges();
         s.model.dom.validate();
         s.model.lpm.validate();
         s.model.psf.validate();

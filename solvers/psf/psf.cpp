@@ -4,6 +4,7 @@
 #include <vector>
 
 #include "solvers/psf/psf_source.h"
+#include "src/core/log.h"
 #include "src/core/report.h"
 #include "src/physics/lights.h"
 #include "src/render/raycaster.h"
@@ -34,6 +35,9 @@ public:
         source_->fluence(ctx.medium, ctx.decomp, out.fluence);
         auto& v = ctx.report.values()["psf"];
         v["levels"] = source_->pyramid().size();
+        if (opt_.levels > source_->pyramid().size())
+            log::warn("model.psf.levels = {}: this grid allows {} pyramid levels, and those are used", opt_.levels,
+                      source_->pyramid().size());
         nlohmann::json widths = nlohmann::json::array();
         for (int k = 0; k < source_->pyramid().size(); ++k) widths.push_back(source_->pyramid().level(k).width);
         v["level_widths_m"] = widths;

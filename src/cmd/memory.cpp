@@ -58,8 +58,11 @@ MemoryEstimate estimate_memory(const Scene& s, const Decomposition& d) {
     const bool ground = s.background.kind == BackgroundSpec::Kind::ground;
     // Whole bytes, so that the estimate stays an integer (its parts then cancel exactly).
     const double pixel_bytes = 40.0 + std::ceil((ground ? 70.0 : 35.0) / d.size());
-    MemoryEstimate m{40.0 * 1024 * 1024 + local_cells * 8 * fields + pixel_bytes * s.camera.width * s.camera.height,
-                     "light pass, render"};
+    const double image = pixel_bytes * s.camera.width * s.camera.height;
+    MemoryEstimate m{40.0 * 1024 * 1024 + local_cells * 8 * fields + image, "light pass, render"};
+    m.image_bytes = image;
+    m.image_width = s.camera.width;
+    m.image_height = s.camera.height;
     // A shadowed ground gathers the outer cell layers of the density and of every light's tau
     // on every rank (render/ground.h), and one field's more while it gathers.
     if (s.background.kind == BackgroundSpec::Kind::ground && s.render.mode != RenderMode::single_unshadowed) {
@@ -84,14 +87,21 @@ void check_memory_fits(MPI_Comm comm, const MemoryEstimate& m) {
     MPI_Allreduce(&m.bytes, &node_bytes, 1, MPI_DOUBLE, MPI_SUM, node);
     MPI_Comm_free(&node);
     const double avail = available_memory();
+    // When the image is most of it, more ranks on the node hold more copies of rank 0's share: the
+    // grid is not what to shrink (a QA finding: a 16384² image on an 8³ grid blamed the grid).
+    const bool image_most = m.image_bytes > 0.5 * m.bytes;
+    const std::string advice =
+        image_most ? fmt::format("the image ({}x{} pixels, camera.resolution) is {:.1f} GiB of it on every rank: use a "
+                                 "smaller camera.resolution, or fewer ranks per node",
+                                 m.image_width, m.image_height, m.image_bytes / kGiB)
+        : m.replicated ? "Monte Carlo copies the grid to every rank: run fewer ranks per node (more nodes), or a "
+                         "coarser grid"
+                       : "use more ranks (on more nodes) or a smaller grid";
     check_collective(comm, avail <= 0 || node_bytes <= avail,
-                     fmt::format("the grid does not fit in memory: a run needs about {:.1f} GiB per rank ({}), "
-                                 "{:.1f} GiB for the {} rank(s) on this node, which has {:.1f} GiB available; "
-                                 "{}",
-                                 m.bytes / kGiB, m.what, node_bytes / kGiB, ranks_on_node, avail / kGiB,
-                                 m.replicated ? "Monte Carlo copies the grid to every rank: run fewer ranks per node "
-                                                "(more nodes), or a coarser grid"
-                                              : "use more ranks (on more nodes) or a smaller grid"));
+                     fmt::format("the {} does not fit in memory: a run needs about {:.1f} GiB per rank ({}), "
+                                 "{:.1f} GiB for the {} rank(s) on this node, which has {:.1f} GiB available; {}",
+                                 image_most ? "run" : "grid", m.bytes / kGiB, m.what, node_bytes / kGiB, ranks_on_node,
+                                 avail / kGiB, advice));
 }
 
 }  // namespace nimbus::cmd

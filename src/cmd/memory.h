@@ -16,6 +16,8 @@ struct MemoryEstimate {
     double bytes = 0;  // on this rank
     std::string what;  // what the figure covers, e.g. "light pass, render, model dom 677 MiB"
     bool replicated = false;  // the model copies the whole grid to every rank (Monte Carlo)
+    double image_bytes = 0;   // the image's share of `bytes` (every rank holds rank 0's share)
+    int image_width = 0, image_height = 0;  // camera.resolution
 };
 
 // Fields every run holds on this rank's box (+1 ghost layer): rho, tau_rho per light term,

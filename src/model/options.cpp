@@ -27,7 +27,7 @@ void MonteCarloOptions::validate() const {
         throw Error(fmt::format("model.montecarlo.kernel = '{}': allowed are auto, lanes, scalar", kernel));
 }
 
-void DiffusionOptions::validate() const {
+void DiffusionOptions::validate_ranges() const {
     const bool known = solver == "pfmg" || solver == "smg" || solver == "pfmg-pcg" ||
                        solver == "smg-pcg" || solver == "petsc";
     if (!known)
@@ -40,6 +40,10 @@ void DiffusionOptions::validate() const {
         throw Error(fmt::format("model.diffusion.flux_limiter = '{}': allowed are none, levermore-pomraning", flux_limiter));
     if (limiter_iterations < 1) throw Error("model.diffusion.limiter_iterations must be >= 1");
     if (!(limiter_tolerance > 0 && limiter_tolerance < 1)) throw Error("model.diffusion.limiter_tolerance must be in (0, 1)");
+}
+
+void DiffusionOptions::validate() const {
+    validate_ranges();
     // Like petsc_options: a limiter setting without the limiter would be ignored silently.
     // (A value other than the default is what is seen: the default itself passes.)
     const DiffusionOptions defaults;

@@ -84,7 +84,12 @@ struct DiffusionOptions {
     // "-diffusion_pc_type mg -diffusion_pc_mg_levels 3 -diffusion_pc_mg_galerkin both".
     // Empty: CG + BoomerAMG, and PETSc's global options (PETSC_OPTIONS) apply.
     std::string petsc_options;
+    // Every check: the ranges, and no setting that the other settings leave unread (limiter keys
+    // without the limiter, petsc_options without solver = petsc). For the model in use.
     void validate() const;
+    // The ranges only: a scene whose model is another one keeps its [model.diffusion] table
+    // unread, so a setting there that diffusion would not read is no error.
+    void validate_ranges() const;
     bool operator==(const DiffusionOptions&) const = default;
 };
 

@@ -12,6 +12,8 @@
 #include <vector>
 #include <fstream>
 
+#include <unistd.h>
+
 #include "io/output/hdf5_writer.h"
 #include "io/output/image_io.h"
 #include "io/output/output_files.h"
@@ -315,8 +317,18 @@ void check_output_location(MPI_Comm comm, const Scene& scene) {
     if (rank == 0) {
         std::error_code ec;
         const fs::path dir = scene.output.dir;
+        // The nearest folder that exists on the way to it: the run creates the rest there.
+        fs::path existing = dir;
+        while (!existing.empty() && !fs::exists(existing, ec)) existing = existing.parent_path();
+        if (existing.empty()) existing = ".";
         if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) {
             msg = fmt::format("output folder '{}' cannot be created or is not writable: it is a file", scene.output.dir);
+        } else if (!fs::is_directory(existing, ec)) {
+            msg = fmt::format("output folder '{}' cannot be created: '{}' is a file", scene.output.dir,
+                              existing.string());
+        } else if (::access(existing.c_str(), W_OK | X_OK) != 0) {
+            msg = fmt::format("output folder '{}' cannot be created or is not writable: '{}' is not writable",
+                              scene.output.dir, existing.string());
         } else {
             std::vector<std::string> outputs;
             if (scene.output.hdf5) outputs = {".h5", ".xdmf"};
@@ -333,6 +345,32 @@ void check_output_location(MPI_Comm comm, const Scene& scene) {
     }
     check_collective(comm, msg.empty(), msg);
     check_outputs_spare_input(comm, scene);
+}
+
+// Settings of this run's model (and image) that its other settings leave unread, given a value
+// other than the default (a scene that only carries the defaults says nothing): said, since
+// they have no effect (a QA finding; another model's table is said by load_run_scene's --set
+// check, and diffusion refuses its own: DiffusionOptions::validate).
+static void warn_of_unread_settings(const Scene& scene) {
+    const ModelSpec defaults;
+    if (scene.model.name == "dom") {
+        const DomOptions& o = scene.model.dom;
+        if (o.quadrature != "product" && (o.polar != defaults.dom.polar || o.azimuthal != defaults.dom.azimuthal))
+            log::warn("model.dom.polar and azimuthal are read only with quadrature = \"product\" (this run's is "
+                      "'{}'): ignored",
+                      o.quadrature);
+        if (o.quadrature != "level-symmetric" && o.order != defaults.dom.order)
+            log::warn("model.dom.order is read only with quadrature = \"level-symmetric\" (this run's is '{}'): "
+                      "ignored",
+                      o.quadrature);
+    }
+    if (scene.model.name == "montecarlo") {
+        const MonteCarloOptions& o = scene.model.montecarlo;
+        if (!o.image && o.samples_per_pixel != defaults.montecarlo.samples_per_pixel)
+            log::warn("model.montecarlo.samples_per_pixel is read only with model.montecarlo.image = true: ignored");
+        if (o.image && !scene.output.image)
+            log::warn("model.montecarlo.image = true, but output.image = false: no image is made");
+    }
 }
 
 Scene load_run_scene(MPI_Comm comm, const RunOptions& opts) {
@@ -363,6 +401,7 @@ Scene load_run_scene(MPI_Comm comm, const RunOptions& opts) {
         for (const std::string& k : kinds) applies += (applies.empty() ? "" : " | ") + k;
         log::warn("--set {}: ignored, medium.kind is '{}' (it applies to {})", key, kind, applies);
     }
+    warn_of_unread_settings(scene);
     return scene;
 }
 

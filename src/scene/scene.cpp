@@ -299,6 +299,17 @@ void Scene::validate() const {
     // Also with the sky off: the scene is stored, and a stored -3 failed only once the sky was on.
     require(sky.directions >= 1 && sky.directions <= 4096, "sky.directions must be in [1, 4096]");
     if (!sky.radiance.empty()) require_bands(sky.radiance, nbands(), "sky.radiance", 2.0 * std::numbers::pi);
+    // Each below single precision alone, the two together make fluence_reduced (and what it
+    // scatters) of E + 2π L: refused here rather than at the write, after the solve (a QA finding).
+    if (sun.enabled && !sky.radiance.empty())
+        for (int b = 0; b < nbands(); ++b) {
+            const auto at = [b](const std::vector<double>& v) { return v.size() == 1 ? v[0] : v[static_cast<size_t>(b)]; };
+            const double total = at(sun.irradiance) + 2.0 * std::numbers::pi * at(sky.radiance);
+            require(total <= kFloatMax,
+                    fmt::format("sun.irradiance + 2π sky.radiance = {:.3g} in band '{}' is beyond single precision "
+                                "({:.3g}), in which the output stores the fields they make",
+                                total, bands[static_cast<size_t>(b)].name, kFloatMax));
+        }
     validate_sources(*this);
     require(camera.width > 0 && camera.height > 0 && camera.width <= 16384 && camera.height <= 16384,
             "camera.resolution must be between 1 and 16384 pixels per side");

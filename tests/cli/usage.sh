@@ -40,6 +40,14 @@ check "info --out" 1 "nimbus: error: --out: info writes no files" info --out "$t
 check "int option beyond int" 1 "model.diffusion.max_iterations = 99999999999 is too large (at most 2147483647)" info --set "model.diffusion.max_iterations=99999999999"
 check "limiter option without limiter" 1 'model.diffusion.limiter_iterations = 5 is read only with flux_limiter = "levermore-pomraning"' info --set 'model.name="diffusion"' --set "model.diffusion.limiter_iterations=5"
 check "limiter option blamed" 1 '\-\-set model.diffusion.limiter_tolerance=0.5: model.diffusion.limiter_tolerance = 0.5 is read only' info --set 'model.name="diffusion"' --set 'model.diffusion.flux_limiter="none"' --set "model.diffusion.limiter_tolerance=0.5"
+# Another model's settings are read for their ranges only: diffusion's cross-key rules apply when it runs.
+check "other model's diffusion options" 0 "--set model.diffusion.petsc_options: ignored, this run's model is 'dom'" info --set 'model.name="dom"' --set 'model.diffusion.petsc_options="-diffusion_pc_type jacobi"' --set "model.diffusion.limiter_iterations=5"
+# Settings of the run's own model that its other settings leave unread are said (a QA finding).
+check "dom polar without the product set" 0 "model.dom.polar and azimuthal are read only with quadrature = \"product\" (this run's is 'level-symmetric'): ignored" info --set 'model.name="dom"' --set model.dom.polar=4
+check "dom order with the product set" 0 "model.dom.order is read only with quadrature = \"level-symmetric\" (this run's is 'product'): ignored" info --set 'model.name="dom"' --set 'model.dom.quadrature="product"' --set model.dom.order=8
+check "samples_per_pixel without the path-traced image" 0 "model.montecarlo.samples_per_pixel is read only with model.montecarlo.image = true: ignored" info --set model.montecarlo.samples_per_pixel=16
+check "psf levels beyond the grid" 0 "model.psf.levels = 100: this grid allows [0-9]* pyramid levels, and those are used" run --set 'model.name="psf"' --set model.psf.levels=100 "${small[@]}" --set output.image=false --out "$tmp/psf"
+check "path-traced image without an image" 0 "model.montecarlo.image = true, but output.image = false: no image is made" info --set model.montecarlo.image=true --set output.image=false
 # P1 far below zero (no delta scaling: the first-scatter flux source overwhelms it) is said, not hidden by the clamp.
 check "negative U warned" 0 "diffusion (bands r, g, b): U is negative in .* cells" run --set 'model.name="diffusion"' \
   --set "grid.n=[24,24,16]" --set grid.cell_size=100 --set model.diffusion.delta_scaling=false --set output.image=false --out "$tmp/neg"
