@@ -262,6 +262,9 @@ private:
     sweep::SweepOptions opt_;
     double periodic_tol_;
     double periodic_failure_ = 0.0;  // relative change left where a layer did not converge
+    // Per octant, the step scheme's slowest contraction rate of the periodic layer iteration
+    // seen since reset_periodic_planes (its stopping test, sweep()).
+    std::array<double, 8> periodic_rate_{};
     SourceRows every_cell_;          // the rows of a SweepSource without rows
     std::map<int, Field<double>> psi_;                          // by octant size
     std::array<std::array<std::vector<double>, 4>, 8> coef_;    // cx, cy, cz, csum per octant
