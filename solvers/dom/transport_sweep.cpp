@@ -575,7 +575,7 @@ void TransportSweeper::sweep(const SweepSource& src, SweepOutput& out) {
             // of the layer's fixed point, not within `change`: where rho is near 1 (a layer one cell
             // wide along a periodic axis, lit by directions nearly along it: the ghost feeds the
             // same cell) stopping at a small change left an error 1/(1 - rho) larger, a floor under
-            // which DSA could not converge (stalled at 6.7e-4 on the slab at 1 x 1 x 64 cells; a QA
+            // which DSA could not converge (stalled at 6.7e-4 on the slab at 16 x 1 x 64 cells; a QA
             // finding). rho is the largest ratio of successive changes this octant has shown (so
             // a first pass that already meets the test knows it too).
             if (!diamond && pass > 0 && previous > 0.0) rate = std::max(rate, std::min(change / previous, 0.999));

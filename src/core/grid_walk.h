@@ -129,8 +129,8 @@ inline std::array<int, 3> cell_of(const GridView& g, std::int64_t idx) {
 // through; s is then where it left the walked box, beyond which all is empty).
 // on_segment(cell_index, length) is called for every piece of path inside one cell, with
 // the length in cells, for cells with kappa > 0 (every cell with kEmptyCells); the sum of
-// kappa * length over the calls
-// equals the optical depth travelled (Beer-Lambert along a piecewise-constant medium).
+// kappa * length over the calls equals the optical depth travelled (Beer-Lambert along a
+// piecewise-constant medium).
 
 namespace detail {
 
