@@ -371,6 +371,21 @@ static void warn_of_unread_settings(const Scene& scene) {
         if (o.image && !scene.output.image)
             log::warn("model.montecarlo.image = true, but output.image = false: no image is made");
     }
+    if (!scene.output.image) return;  // the rest is about the image
+    const BackgroundSpec background;
+    if (scene.background.kind != BackgroundSpec::Kind::ground &&
+        (scene.background.ground_albedo != background.ground_albedo || !scene.background.ground_color.empty()))
+        log::warn("background.ground_albedo and ground_color are read only with background.kind = \"ground\": "
+                  "ignored");
+    const RenderSpec render;
+    const bool emission = scene.render.mode == RenderMode::emission || scene.render.mode == RenderMode::emission_absorption;
+    if (!emission && scene.render.emission_color != render.emission_color)
+        log::warn("render.emission_color is read only with render.mode = \"emission\" or \"emission_absorption\": "
+                  "ignored");
+    if (scene.model.name == "montecarlo" && scene.model.montecarlo.image &&
+        (scene.render.step != render.step || scene.render.early_termination != render.early_termination))
+        log::warn("render.step and early_termination are the ray caster's: the path-traced image "
+                  "(model.montecarlo.image = true) does not read them");
 }
 
 Scene load_run_scene(MPI_Comm comm, const RunOptions& opts) {

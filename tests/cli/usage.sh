@@ -47,6 +47,9 @@ check "dom polar without the product set" 0 "model.dom.polar and azimuthal are r
 check "dom order with the product set" 0 "model.dom.order is read only with quadrature = \"level-symmetric\" (this run's is 'product'): ignored" info --set 'model.name="dom"' --set 'model.dom.quadrature="product"' --set model.dom.order=8
 check "samples_per_pixel without the path-traced image" 0 "model.montecarlo.samples_per_pixel is read only with model.montecarlo.image = true: ignored" info --set model.montecarlo.samples_per_pixel=16
 check "psf levels beyond the grid" 0 "model.psf.levels = 100: this grid allows [0-9]* pyramid levels, and those are used" run --set 'model.name="psf"' --set model.psf.levels=100 "${small[@]}" --set output.image=false --out "$tmp/psf"
+check "ground albedo without the ground" 0 "background.ground_albedo and ground_color are read only with background.kind = \"ground\": ignored" info --set background.ground_albedo=0.5
+check "emission colour when scattering" 0 "render.emission_color is read only with render.mode = \"emission\" or \"emission_absorption\": ignored" info --set render.emission_color=0.5
+check "ray-march step with the path-traced image" 0 "render.step and early_termination are the ray caster's" info --set model.montecarlo.image=true --set render.step=0.25
 check "path-traced image without an image" 0 "model.montecarlo.image = true, but output.image = false: no image is made" info --set model.montecarlo.image=true --set output.image=false
 # P1 far below zero (no delta scaling: the first-scatter flux source overwhelms it) is said, not hidden by the clamp.
 check "negative U warned" 0 "diffusion (bands r, g, b): U is negative in .* cells" run --set 'model.name="diffusion"' \
